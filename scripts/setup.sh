@@ -41,6 +41,11 @@ case "$pyver" in
 esac
 log "mode: $mode (Python $pyver), environment: $VENV"
 
+# One set-up at a time per environment (parallel test runs share .venv).
+mkdir -p "$(dirname "$VENV")"
+exec 9>"$VENV.lock"
+flock 9 || die "could not lock $VENV.lock"
+
 # ---------------------------------------------------------------- venv
 if [ -x "$VENV/bin/python" ] && [ -f "$STAMPS/mode" ] && [ "$(cat "$STAMPS/mode")" != "$mode" ]; then
     log "the existing venv was made for mode '$(cat "$STAMPS/mode")': recreating it"
