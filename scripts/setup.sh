@@ -132,8 +132,12 @@ fi
 
 # ---------------------------------------------------------------- the package itself
 # Non-editable install: config/ and launch/ land in <prefix>/share/hrn_vo_ros (ros_notes.md §5).
-want=$(cd "$ROOT" && find hrn_vo_ros config launch resource setup.py setup.cfg package.xml \
-        -type f -not -path '*__pycache__*' -print0 | sort -z | xargs -0 sha256sum | sha256sum | cut -c1-16)
+pkg_inputs=()
+for p in hrn_vo_ros config launch resource setup.py setup.cfg package.xml; do
+    [ -e "$ROOT/$p" ] && pkg_inputs+=("$p")
+done
+want=$(cd "$ROOT" && find "${pkg_inputs[@]}" -type f -not -path '*__pycache__*' -print0 \
+        | sort -z | xargs -0 sha256sum | sha256sum | cut -c1-16)
 if ! stamp_ok package "$want"; then
     log "installing hrn_vo_ros into the environment"
     rm -rf "$ROOT/build/lib" "$ROOT/build/bdist."* "$ROOT"/*.egg-info
