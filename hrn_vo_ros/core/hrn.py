@@ -1,0 +1,757 @@
+"""The hierarchical resonator network (HRN) for event-camera odometry, Model A (hrn_math.md §2.3).
+
+Public API (engineers D and E code against this; stable):
+
+* ``ResonatorConfig`` (nested: ``codebook``, ``logpolar``, ``cleanup``, ``map``, ``readout``,
+  ``scale``, ``imu``), frozen, validated, YAML/ROS-parameter ready (``configbase``).
+* ``HRN(cfg: ResonatorConfig | None = None, *, rng: np.random.Generator)``
+    - ``step(image: NDArray (H, W), t_ns: int, *, gyro_delta: NDArray (3,) | None = None)
+      -> Estimate`` — one event frame; ``gyro_delta`` is the integrated gyro (rad, camera axes
+      x right / y down / z forward) since the previous frame (``core.imu.GyroIntegrator``).
+    - ``map_image() -> NDArray (H_c, W_c) float64`` — the map as an intensity image (canvas).
+    - ``egocentric_map_image() -> NDArray (H_c, W_c)`` — the map moved to the current view.
+    - ``readout_axis(name) -> NDArray (K,)`` — physical value of each similarity entry.
+    - ``factors: tuple[str, ...]`` (``('h', 'v', 'r')`` or with ``'z'``), ``iteration: int``,
+      ``geometry: logpolar.Geometry``, ``reset()``.
+* ``Estimate`` (``core.estimate``): ``t_ns, h, v, r, z, confidence, spread, iteration,
+  map_updated, similarity, valid``.
+* Pieces for the spiking backend: ``cleanup_weights(c, cfg)`` (the nonlinearity p),
+  ``population_readout(sim, half_window, circular)``, ``FactorCodebook`` (1-D FPE codebooks),
+  ``fhrr`` (seeds, powers, phasor projection), ``logpolar`` (T, T', Λ, Λ' fast and dense).
+
+Model (A: camera-centred roll, Cartesian map), with C_X(u) = f(X p(Re X† u)), f = phasor
+projection, every state update x̂ ← (1-γ) x̂ + γ C_X(·), Λ: Cartesian → log-polar, Λ': back::
+
+    generative:  s ≈ Λ'( Λ(m ⊙ h ⊙ v) ⊙ r [⊙ z] )
+    S  = Λ(s)                                   (s = Φ I, the frame encoded, paper Eq. 3)
+    p̂ = Λ'( S ⊙ r̂* [⊙ ẑ*] )                    (input with roll/zoom removed)
+    ĥ ← C_H( p̂ ⊙ v̂* ⊙ m̂* ) ;  v̂ ← C_V( p̂ ⊙ ĥ* ⊙ m̂* )            (paper Eq. 4, h and v)
+    l̂ = Λ( m̂ ⊙ ĥ ⊙ v̂ )                        (map moved to the camera, log-polar)
+    r̂ ← C_R( S ⊙ l̂* [⊙ ẑ*] ) ;  ẑ ← C_Z( S ⊙ l̂* ⊙ r̂* )             (paper Eq. 4, r)
+    m(t) = Λ'( S ⊙ r^{-r_o} [⊙ z^{-z_o}] ) ⊙ h^{-h_o} ⊙ v^{-v_o}     (paper Eq. 8, Model A form)
+    m̂ ← μ1 m̂ + μ2 m̂(0) + (1-μ1-μ2) m(t) ;  m̂(0) = s(0)            (paper Eq. 9)
+
+All states are updated synchronously from the previous iterate (as Eq. 4 is written).
+
+Why Model A: it is the paper's Eq. 4 after the notational fixes, h/v come out directly as the
+camera position in the allocentric map (what the paper calibrates with a fixed Umeyama
+transform), and the roll is about the image centre, i.e. the optical axis, which is how a
+hand-held camera rolls. Model B (map in log-polar, Eq. 8 literally) rotates about the map origin
+and couples roll into the translation readout; it is not implemented.
+
+Two paths with the same equations:
+
+* ``path='fast'`` (DFT codebooks only): vectors are 2-D spectra; Λ = FFT ∘ sparse resampling ∘
+  IFFT; each factor state depends on one frequency axis only, so it is stored as a 1-D vector and
+  each cleanup is a weighted marginal sum plus a small codebook product (hrn_math.md §3.2).
+* ``path='dense'``: the reference. Full N-dimensional states, dense Φ and Λ matrices (the paper's
+  ~360 M operations per iteration), DFT or seeded random codebooks (N free, e.g. 3072).
+
+Signs (all checked by tests on synthetic motion): binding the map with ``h0^a`` moves the image
+content by +a pixels; the output ``h = -a`` is then the camera's position in the map. Binding with
+``r0^b`` rotates the content by +b·2π/n_θ from +x towards +y (y down); a camera roll φ
+(right-handed about the optical axis) rotates the content by -φ, so ``r = -b·2π/n_θ``. ``z`` is the
+log zoom of the content (ρ shift × Δρ), positive when the camera approaches the scene.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+import scipy.fft as sfft
+
+from hrn_vo_ros.core import fhrr
+from hrn_vo_ros.core.configbase import nested, param, validate
+from hrn_vo_ros.core.estimate import Estimate
+from hrn_vo_ros.core.logpolar import (
+    dense_lambdas,
+    dense_lambdas_dft,
+    Geometry,
+    LogPolarConfig,
+    LogPolarTransform,
+    make_geometry,
+)
+from hrn_vo_ros.errors import ConfigError, TrackingError
+
+Complex = NDArray[np.complex128]
+Real = NDArray[np.float64]
+
+NONLINEARITIES = ('identity', 'relu', 'relu_k', 'exp')
+
+
+# --------------------------------------------------------------------------------------------
+# Configuration
+
+
+@dataclass(frozen=True, slots=True)
+class CodebookConfig:
+    """Codebooks and the Cartesian canvas."""
+
+    kind: str = param('dft', 'dft: centred DFT seeds (fast path); random: seeded random FPE '
+                      'seeds (dense path only)', choices=('dft', 'random'), read_only=True)
+    dim: int = param(0, 'vector dimension N of random codebooks (0: canvas pixels); DFT '
+                     'codebooks have N = canvas pixels', lo=0, hi=100_000, read_only=True)
+    canvas_width: int = param(0, 'Cartesian canvas width in frame pixels (0: frame width); '
+                              'larger keeps wrapped-around content out of the map',
+                              lo=0, hi=4096, read_only=True)
+    canvas_height: int = param(0, 'Cartesian canvas height in frame pixels (0: frame height)',
+                               lo=0, hi=4096, read_only=True)
+    rcond: float = param(1e-6, 'relative cut-off of the pseudo-inverses of random codebooks',
+                         lo=0.0, hi=1.0, read_only=True)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class CleanupConfig:
+    """Cleanup C_X(u) = f(X p(Re X† u)) and the state update speed."""
+
+    nonlinearity: str = param('exp', 'p: identity, relu, relu_k (relu to the power k) or exp '
+                              '(exp(beta (c / max|c| - 1)), a softmax)', choices=NONLINEARITIES)
+    k: float = param(3.0, 'exponent of relu_k', lo=0.1, hi=100.0)
+    beta: float = param(10.0, 'sharpness of exp, in units of the peak similarity', lo=0.0,
+                        hi=1000.0)
+    gamma: float = param(0.5, 'state update speed: x <- (1-gamma) x + gamma C_X(.)', lo=0.0,
+                         hi=1.0)
+    iterations_per_frame: int = param(1, 'resonator iterations per event frame', lo=1, hi=100)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class MapConfig:
+    """The allocentric map and its anchored update (paper Eq. 9)."""
+
+    learn: bool = param(True, "update the map (false: the paper's ablation, map = first frame)")
+    mu1: float = param(0.9, 'weight of the previous map', lo=0.0, hi=1.0)
+    mu2: float = param(0.01, 'weight of the initial map (anchoring)', lo=0.0, hi=1.0)
+    block_iterations: int = param(100, 'no map update during the first iterations',
+                                  lo=0, hi=10_000_000)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if self.mu1 + self.mu2 > 1.0:
+            raise ConfigError(f'MapConfig: mu1 + mu2 = {self.mu1 + self.mu2} must be <= 1')
+
+
+@dataclass(frozen=True, slots=True)
+class ReadoutConfig:
+    """Population-vector readout (paper Eq. 7)."""
+
+    half_window: int = param(5, 'neighbours on each side of the peak in the population vector',
+                             lo=0, hi=1000)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class ScaleConfig:
+    """The optional scale (zoom) factor z in the log-polar partition."""
+
+    enabled: bool = param(False, 'estimate a scale factor z (translation along the optical axis)',
+                          read_only=True)
+    max_log_scale: float = param(0.4, 'codebook covers log scales in [-max, max]', lo=0.001,
+                                 hi=5.0, read_only=True)
+    entries: int = param(41, 'codebook entries over that range (fractional ring shifts)', lo=3,
+                         hi=10_000, read_only=True)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class ImuConfig:
+    """IMU prediction by fractional binding (paper Eq. 10)."""
+
+    enabled: bool = param(False, 'bind the states with the integrated gyro before each frame')
+    focal_px: float = param(0.0, 'focal length in frame pixels for pan/tilt -> h, v (0: the '
+                            'caller derives it from the calibration, fx / downsample)',
+                            lo=0.0, hi=100_000.0)
+    camera_from_imu: tuple[float, ...] = param(
+        (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+        'rotation IMU axes -> camera axes (x right, y down, z forward), row-major 3x3',
+        lo=-1.0, hi=1.0)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if len(self.camera_from_imu) != 9:
+            raise ConfigError('ImuConfig.camera_from_imu needs 9 numbers (a row-major 3x3)')
+
+
+@dataclass(frozen=True, slots=True)
+class ResonatorConfig:
+    """Everything the HRN needs; nested sections map to nested YAML dictionaries."""
+
+    width: int = param(96, 'event frame width in pixels (packetizer output)', lo=2, hi=4096,
+                       read_only=True)
+    height: int = param(72, 'event frame height in pixels', lo=2, hi=4096, read_only=True)
+    path: str = param('fast', 'fast (FFT, DFT codebooks) or dense (reference matrices)',
+                      choices=('fast', 'dense'), read_only=True)
+    codebook: CodebookConfig = nested(CodebookConfig, 'codebooks and canvas')
+    logpolar: LogPolarConfig = nested(LogPolarConfig, 'log-polar grid')
+    cleanup: CleanupConfig = nested(CleanupConfig, 'cleanup nonlinearity and update speed')
+    map: MapConfig = nested(MapConfig, 'map learning and anchoring')
+    readout: ReadoutConfig = nested(ReadoutConfig, 'population-vector readout')
+    scale: ScaleConfig = nested(ScaleConfig, 'optional scale factor z')
+    imu: ImuConfig = nested(ImuConfig, 'IMU prediction')
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if self.path == 'fast' and self.codebook.kind != 'dft':
+            raise ConfigError('ResonatorConfig: path fast needs codebook.kind dft; use path '
+                              'dense for random codebooks')
+        make_geometry(self.width, self.height, self.codebook.canvas_width,
+                      self.codebook.canvas_height, self.logpolar)
+
+
+# --------------------------------------------------------------------------------------------
+# Pieces shared with the spiking backend
+
+
+def cleanup_weights(c: Real, cfg: CleanupConfig, bound: float = 0.0) -> Real:
+    """The cleanup nonlinearity p applied to the similarities ``c = Re(X† u)``.
+
+    ``identity``: c; ``relu``: max(c, 0); ``relu_k``: max(c, 0)^k; ``exp``:
+    exp(β (c / max|c| - 1)). The phasor projection after ``X p(c)`` makes all of them invariant
+    to a positive scale of c, so no normalisation of u is needed.
+
+    Args:
+        c: Similarities.
+        cfg: The cleanup settings.
+        bound: An upper bound of |c| (``|x_j| |u|``); similarities below ``1e-9 * bound`` are
+            rounding noise and count as 0 (so a blank input gives p = 0, not amplified noise).
+
+    Shapes:
+        c: (K,); returns (K,).
+    """
+    if bound > 0.0:
+        c = np.where(np.abs(c) < 1e-9 * bound, 0.0, c)
+    kind = cfg.nonlinearity
+    if kind == 'identity':
+        return c
+    if kind == 'relu':
+        return np.maximum(c, 0.0)
+    if kind == 'relu_k':
+        return np.maximum(c, 0.0) ** cfg.k
+    top = float(np.max(np.abs(c)))
+    if top <= 0.0:
+        return np.zeros_like(c)
+    return np.exp(cfg.beta * (c / top - 1.0))
+
+
+def population_readout(sim: Real, half_window: int, circular: bool
+                       ) -> tuple[float, float, float]:
+    """Population vector around the peak (paper Eq. 7), negative weights clipped to 0.
+
+    Args:
+        sim: Readout similarities over codebook entries.
+        half_window: Neighbours on each side of the peak.
+        circular: Wrap the window around the ends (periodic codebooks); the returned index is
+            then not wrapped (it may lie just outside [0, K)).
+
+    Returns:
+        ``(index, spread, peak)``: fractional entry index, weighted standard deviation of the
+        index in the window, and the peak similarity.
+
+    Shapes:
+        sim: (K,).
+    """
+    n = sim.shape[0]
+    k = int(np.argmax(sim))
+    idx = np.arange(k - half_window, k + half_window + 1)
+    if circular:
+        w = sim[np.mod(idx, n)]
+    else:
+        idx = idx[(idx >= 0) & (idx < n)]
+        w = sim[idx]
+    w = np.maximum(w, 0.0)
+    total = float(w.sum())
+    if total <= 0.0:
+        return float(k), 0.0, float(sim[k])
+    mean = float(np.dot(w, idx) / total)
+    spread = math.sqrt(max(float(np.dot(w, (idx - mean) ** 2) / total), 0.0))
+    return mean, spread, float(sim[k])
+
+
+@dataclass(frozen=True, slots=True)
+class FactorCodebook:
+    """A 1-D FPE codebook along one axis: entries ``seed^{values[j]}``.
+
+    Attributes:
+        name: Factor name (h, v, r, z).
+        phases: Seed phases along the axis (the factor's frequency axis in the fast path).
+        values: Exponent of each entry (index units: pixels, angle samples, ring shifts).
+        period: The codebook wraps after this many index units (None: not periodic).
+        unit: Physical size of one index unit (pixel 1, 2π/n_θ rad, Δρ).
+        sign: Output sign: physical value = sign · unit · index.
+    """
+
+    name: str
+    phases: Real
+    values: Real
+    period: float | None
+    unit: float
+    sign: float
+
+    @property
+    def matrix(self) -> Complex:
+        """(n, K) codebook matrix."""
+        return fhrr.codebook(self.phases, self.values)
+
+
+def _factor_codebooks(cfg: ResonatorConfig, g: Geometry) -> dict[str, FactorCodebook]:
+    """The 1-D DFT factor codebooks of the fast path (also the dense DFT path's factors)."""
+    def centred(n: int) -> Real:      # entries -n/2 .. n/2-1 (shifts both ways)
+        return np.arange(n, dtype=float) - n // 2
+
+    books = {
+        'h': FactorCodebook('h', fhrr.dft_phases(g.canvas_width), centred(g.canvas_width),
+                            float(g.canvas_width), 1.0, -1.0),
+        'v': FactorCodebook('v', fhrr.dft_phases(g.canvas_height), centred(g.canvas_height),
+                            float(g.canvas_height), 1.0, -1.0),
+        'r': FactorCodebook('r', fhrr.dft_phases(g.n_theta), centred(g.n_theta),
+                            float(g.n_theta), 2.0 * math.pi / g.n_theta, -1.0),
+    }
+    if cfg.scale.enabled:
+        top = cfg.scale.max_log_scale / g.d_rho
+        books['z'] = FactorCodebook('z', fhrr.dft_phases(g.n_rho),
+                                    np.linspace(-top, top, cfg.scale.entries), None, g.d_rho, 1.0)
+    return books
+
+
+# --------------------------------------------------------------------------------------------
+# Engines: the same equations, fast (FFT, factorised) and dense (matrices)
+
+
+class _Engine(Protocol):
+    books: dict[str, FactorCodebook]
+
+    def encode(self, canvas: Real) -> Any: ...
+    def start(self, canvas: Real, rng: np.random.Generator) -> None: ...
+    def iterate(self, S: Any) -> None: ...
+    def similarities(self) -> dict[str, Real]: ...
+    def shift(self, name: str, delta: float) -> None: ...
+    def update_map(self, S: Any, point: dict[str, float], mu1: float, mu2: float) -> None: ...
+    def map_image(self, point: dict[str, float] | None) -> Real: ...
+
+
+def _normalised(c: Complex, x: Complex, col_norm: float) -> Real:
+    nx = float(np.linalg.norm(x))
+    if nx == 0.0:
+        return np.zeros(c.shape[0])
+    return np.real(c) / (col_norm * nx)
+
+
+class _FastEngine:
+    """DFT codebooks; factor states as 1-D spectra along their axis (hrn_math.md §3.2)."""
+
+    def __init__(self, cfg: ResonatorConfig, g: Geometry) -> None:
+        self.cfg = cfg
+        self.g = g
+        self.lp = LogPolarTransform(g, workers=1)
+        self.books = _factor_codebooks(cfg, g)
+        self.X = {k: b.matrix for k, b in self.books.items()}
+        self.XH = {k: np.ascontiguousarray(x.conj().T) for k, x in self.X.items()}
+        self.col_norm = {k: math.sqrt(x.shape[0]) for k, x in self.X.items()}
+        self.has_z = 'z' in self.books
+        self.state: dict[str, Complex] = {}
+        self.m = np.zeros((g.canvas_height, g.canvas_width), np.complex128)
+        self.m0 = self.m
+
+    def encode(self, canvas: Real) -> Complex:
+        return self.lp.encode_image_lp(canvas)
+
+    def start(self, canvas: Real, rng: np.random.Generator) -> None:
+        g = self.g
+        self.state = {'h': fhrr.random_phasor(g.canvas_width, rng),
+                      'v': fhrr.random_phasor(g.canvas_height, rng),
+                      'r': fhrr.random_phasor(g.n_theta, rng)}
+        if self.has_z:
+            self.state['z'] = fhrr.random_phasor(g.n_rho, rng)
+        self.m0 = sfft.fft2(canvas, workers=1)          # m̂(0) = s(0) = Φ I(0)
+        self.m = self.m0.copy()
+
+    def _clean(self, name: str, a: Complex) -> Complex:
+        # C_X(u) with u's weighted marginal a along the factor's axis: f(X p(Re X† a)).
+        c = np.real(self.XH[name] @ a)
+        bound = self.col_norm[name] * float(np.linalg.norm(a))
+        return fhrr.phasor(self.X[name] @ cleanup_weights(c, self.cfg.cleanup, bound))
+
+    def iterate(self, S: Complex) -> None:
+        st = self.state
+        gam = self.cfg.cleanup.gamma
+        h, v, r = st['h'], st['v'], st['r']
+        z = st.get('z')
+        mc = self.m.conj()
+        q = S * r.conj()[None, :]
+        if z is not None:
+            q *= z.conj()[:, None]
+        u = self.lp.reverse(q)                      # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
+        u *= mc                                     # p̂ ⊙ m̂*
+        a_h = v.conj() @ u                          # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
+        a_v = u @ h.conj()                          # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
+        w = self.lp.forward(self.m * v[:, None] * h[None, :])   # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
+        np.conjugate(w, out=w)
+        w *= S                                      # S ⊙ l̂*
+        if z is not None:
+            a_r = z.conj() @ w
+            a_z = w @ r.conj()
+            st['z'] = (1 - gam) * z + gam * self._clean('z', a_z)
+        else:
+            a_r = w.sum(axis=0)
+        st['h'] = (1 - gam) * h + gam * self._clean('h', a_h)
+        st['v'] = (1 - gam) * v + gam * self._clean('v', a_v)
+        st['r'] = (1 - gam) * r + gam * self._clean('r', a_r)
+
+    def similarities(self) -> dict[str, Real]:
+        return {k: _normalised(self.XH[k] @ x, x, self.col_norm[k])
+                for k, x in self.state.items()}
+
+    def shift(self, name: str, delta: float) -> None:
+        self.state[name] = self.state[name] * fhrr.power(self.books[name].phases, delta)
+
+    def _to_map(self, S: Complex, point: dict[str, float]) -> Complex:
+        b = self.books
+        q = S * fhrr.power(b['r'].phases, -point['r'])[None, :]
+        if self.has_z:
+            q *= fhrr.power(b['z'].phases, -point['z'])[:, None]
+        t = self.lp.reverse(q)
+        t *= fhrr.power(b['v'].phases, -point['v'])[:, None]
+        t *= fhrr.power(b['h'].phases, -point['h'])[None, :]
+        return t
+
+    def update_map(self, S: Complex, point: dict[str, float], mu1: float, mu2: float) -> None:
+        target = self._to_map(S, point)
+        self.m = mu1 * self.m + mu2 * self.m0 + (1.0 - mu1 - mu2) * target   # Eq. 9
+
+    def map_image(self, point: dict[str, float] | None) -> Real:
+        m = self.m
+        if point is not None:
+            b = self.books
+            m = (m * fhrr.power(b['v'].phases, point['v'])[:, None]
+                 * fhrr.power(b['h'].phases, point['h'])[None, :])
+            m = self.lp.forward(m) * fhrr.power(b['r'].phases, point['r'])[None, :]
+            if self.has_z:
+                m = m * fhrr.power(b['z'].phases, point['z'])[:, None]
+            m = self.lp.reverse(m)
+        return np.real(sfft.ifft2(m, workers=1))
+
+
+class _DenseEngine:
+    """Reference path: full N-dimensional states, dense Φ, X and Λ matrices (§3.1)."""
+
+    def __init__(self, cfg: ResonatorConfig, g: Geometry, rng: np.random.Generator,
+                 dtype: type[np.complexfloating] = np.complex128) -> None:
+        self.cfg = cfg
+        self.g = g
+        self.dtype = dtype
+        small = _factor_codebooks(cfg, g)
+        hc, wc, nr, nt = g.canvas_height, g.canvas_width, g.n_rho, g.n_theta
+        if cfg.codebook.kind == 'dft':
+            # Full-vector phases of the 2-D DFT seeds: broadcast of the 1-D ones.
+            ph = {'h': np.broadcast_to(small['h'].phases[None, :], (hc, wc)).ravel(),
+                  'v': np.broadcast_to(small['v'].phases[:, None], (hc, wc)).ravel(),
+                  'r': np.broadcast_to(small['r'].phases[None, :], (nr, nt)).ravel(),
+                  'z': np.broadcast_to(fhrr.dft_phases(nr)[:, None], (nr, nt)).ravel()}
+            self.periodic = True
+        else:
+            n = cfg.codebook.dim or g.n_cart
+            ph = {'h': fhrr.random_phases(n, rng), 'v': fhrr.random_phases(n, rng),
+                  'r': fhrr.random_phases(n, rng, period=nt), 'z': fhrr.random_phases(n, rng)}
+            self.periodic = False
+        self.phases = ph
+        self.books: dict[str, FactorCodebook] = {}
+        for k, b in small.items():
+            period = b.period if (self.periodic or k == 'r') else None
+            self.books[k] = FactorCodebook(k, ph[k], b.values, period, b.unit, b.sign)
+        self.X = {k: b.matrix.astype(dtype) for k, b in self.books.items()}
+        self.XH = {k: np.ascontiguousarray(x.conj().T) for k, x in self.X.items()}
+        self.col_norm = {k: math.sqrt(x.shape[0]) for k, x in self.X.items()}
+        self.phi_c = fhrr.grid_codebook(ph['h'], ph['v'], wc, hc).astype(dtype)
+        if cfg.codebook.kind == 'dft':
+            self.lam, self.lam_r = dense_lambdas_dft(g, dtype=dtype)
+        else:
+            phi_lp = fhrr.grid_codebook(ph['r'], ph['z'], nt, nr)
+            self.lam, self.lam_r = dense_lambdas(self.phi_c, phi_lp, g, rcond=cfg.codebook.rcond,
+                                                 dtype=dtype)
+        self._pinv_c: NDArray[np.complex128] | None = None
+        self.has_z = 'z' in self.books
+        self.state: dict[str, NDArray[np.complexfloating]] = {}
+        self.m = np.zeros(self.phi_c.shape[0], dtype)
+        self.m0 = self.m
+
+    def encode(self, canvas: Real) -> NDArray[np.complexfloating]:
+        s = self.phi_c @ canvas.ravel().astype(self.dtype)        # s = Φ I (Eq. 3)
+        S: NDArray[np.complexfloating] = self.lam @ s               # S = Λ s
+        return S
+
+    def start(self, canvas: Real, rng: np.random.Generator) -> None:
+        g = self.g
+        hc, wc, nr, nt = g.canvas_height, g.canvas_width, g.n_rho, g.n_theta
+        if self.periodic:
+            # Same draws as the fast path, broadcast to full vectors.
+            h, v = fhrr.random_phasor(wc, rng), fhrr.random_phasor(hc, rng)
+            r = fhrr.random_phasor(nt, rng)
+            self.state = {'h': np.broadcast_to(h[None, :], (hc, wc)).ravel(),
+                          'v': np.broadcast_to(v[:, None], (hc, wc)).ravel(),
+                          'r': np.broadcast_to(r[None, :], (nr, nt)).ravel()}
+            if self.has_z:
+                z = fhrr.random_phasor(nr, rng)
+                self.state['z'] = np.broadcast_to(z[:, None], (nr, nt)).ravel()
+        else:
+            n = self.phi_c.shape[0]
+            self.state = {k: fhrr.random_phasor(n, rng) for k in self.books}
+        self.state = {k: x.astype(self.dtype) for k, x in self.state.items()}
+        self.m0 = self.phi_c @ canvas.ravel().astype(self.dtype)
+        self.m = self.m0.copy()
+
+    def _clean(self, name: str, u: NDArray[np.complexfloating]) -> NDArray[np.complexfloating]:
+        c = np.real(self.XH[name] @ u).astype(np.float64)
+        bound = self.col_norm[name] * float(np.linalg.norm(u))
+        out = self.X[name] @ cleanup_weights(c, self.cfg.cleanup, bound).astype(self.dtype)
+        return fhrr.phasor(out.astype(np.complex128)).astype(self.dtype)
+
+    def iterate(self, S: NDArray[np.complexfloating]) -> None:
+        st = self.state
+        gam = self.cfg.cleanup.gamma
+        h, v, r = st['h'], st['v'], st['r']
+        z = st.get('z')
+        q = S * r.conj() if z is None else S * r.conj() * z.conj()
+        p = self.lam_r @ q                                  # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
+        mc = self.m.conj()
+        h_new = (1 - gam) * h + gam * self._clean('h', p * v.conj() * mc)
+        v_new = (1 - gam) * v + gam * self._clean('v', p * h.conj() * mc)
+        lv = self.lam @ (self.m * h * v)                    # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
+        w = S * lv.conj()
+        if z is not None:
+            st['z'] = (1 - gam) * z + gam * self._clean('z', w * r.conj())
+            w = w * z.conj()
+        st['r'] = (1 - gam) * r + gam * self._clean('r', w)
+        st['h'], st['v'] = h_new, v_new
+
+    def similarities(self) -> dict[str, Real]:
+        return {k: _normalised((self.XH[k] @ x).astype(np.complex128), x.astype(np.complex128),
+                               self.col_norm[k])
+                for k, x in self.state.items()}
+
+    def shift(self, name: str, delta: float) -> None:
+        self.state[name] = self.state[name] * fhrr.power(self.phases[name], delta).astype(
+            self.dtype)
+
+    def update_map(self, S: NDArray[np.complexfloating], point: dict[str, float], mu1: float,
+                   mu2: float) -> None:
+        ph = self.phases
+        q = S * fhrr.power(ph['r'], -point['r'])
+        if self.has_z:
+            q = q * fhrr.power(ph['z'], -point['z'])
+        t = (self.lam_r @ q.astype(self.dtype)) * fhrr.power(
+            ph['h'], -point['h']) * fhrr.power(ph['v'], -point['v'])
+        self.m = (mu1 * self.m + mu2 * self.m0 + (1.0 - mu1 - mu2) * t).astype(self.dtype)
+
+    def map_image(self, point: dict[str, float] | None) -> Real:
+        m = self.m
+        if point is not None:
+            ph = self.phases
+            m = self.lam @ (m * fhrr.power(ph['h'], point['h']) * fhrr.power(ph['v'], point['v']))
+            m = m * fhrr.power(ph['r'], point['r'])
+            if self.has_z:
+                m = m * fhrr.power(ph['z'], point['z'])
+            m = self.lam_r @ m.astype(self.dtype)
+        if self._pinv_c is None:
+            self._pinv_c = np.asarray(np.linalg.pinv(self.phi_c.astype(np.complex128),
+                                                     rcond=self.cfg.codebook.rcond),
+                                      np.complex128)
+        img = np.real(self._pinv_c @ m.astype(np.complex128))
+        return img.reshape(self.g.canvas_height, self.g.canvas_width)
+
+
+# --------------------------------------------------------------------------------------------
+# The network
+
+
+class HRN:
+    """Hierarchical resonator odometry: one (or a few) resonator iterations per event frame.
+
+    Args:
+        cfg: Configuration (defaults: 96x72 frames, DFT codebooks, fast path, h/v/r).
+        rng: Source of the random initial states (and of random codebooks).
+        dense_dtype: Complex type of the dense reference matrices (complex64 halves memory).
+
+    Raises:
+        ConfigError: on inconsistent settings.
+    """
+
+    def __init__(self, cfg: ResonatorConfig | None = None, *, rng: np.random.Generator,
+                 dense_dtype: type[np.complexfloating] = np.complex128) -> None:
+        self.cfg = cfg if cfg is not None else ResonatorConfig()
+        self.rng = rng
+        c = self.cfg
+        self.geometry = make_geometry(c.width, c.height, c.codebook.canvas_width,
+                                      c.codebook.canvas_height, c.logpolar)
+        self._engine: _Engine
+        if c.path == 'fast':
+            self._engine = _FastEngine(c, self.geometry)
+        else:
+            self._engine = _DenseEngine(c, self.geometry, rng, dense_dtype)
+        self.factors: tuple[str, ...] = tuple(self._engine.books)
+        self._canvas = np.zeros((self.geometry.canvas_height, self.geometry.canvas_width))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the map and the states; the next non-empty frame starts a new map."""
+        self.iteration = 0
+        self._started = False
+        self._point = dict.fromkeys(self.factors, 0.0)          # index units, wrapped
+        self._last: Estimate | None = None
+        self._out = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def _place(self, image: NDArray[Any]) -> Real:
+        g = self.geometry
+        ox, oy = g.offset
+        self._canvas[oy:oy + g.height, ox:ox + g.width] = image
+        return self._canvas
+
+    def readout_axis(self, name: str) -> Real:
+        """Physical value (px, rad, log scale) of each readout entry of factor ``name``."""
+        b = self._engine.books[name]
+        vals = b.sign * b.unit * b.values
+        if b.period is not None:
+            half = 0.5 * b.period * b.unit
+            vals = np.mod(vals + half, 2 * half) - half
+        return vals
+
+    def _readout(self, sims: dict[str, Real]) -> tuple[dict[str, float], dict[str, float],
+                                                       dict[str, float]]:
+        """Point estimates (index units), spreads and peaks of every factor."""
+        hw = self.cfg.readout.half_window
+        point, spread, peak = {}, {}, {}
+        for name, sim in sims.items():
+            b = self._engine.books[name]
+            idx, sd, pk = population_readout(sim, hw, b.period is not None)
+            step = float(b.values[1] - b.values[0]) if len(b.values) > 1 else 1.0
+            value = float(b.values[0]) + idx * step
+            if b.period is not None:
+                value = (value + 0.5 * b.period) % b.period - 0.5 * b.period
+            point[name], spread[name], peak[name] = value, sd * step * b.unit, pk
+        return point, spread, peak
+
+    def _imu_predict(self, gyro_delta: NDArray[Any]) -> None:
+        g = np.asarray(gyro_delta, dtype=np.float64)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise TrackingError(f'gyro_delta must be 3 finite numbers (rad), got {gyro_delta!r}')
+        f = self.cfg.imu.focal_px
+        if f <= 0.0:
+            raise ConfigError('imu.focal_px must be > 0 for the IMU prediction: set it to the '
+                              'focal length in frame pixels (fx / downsample)')
+        rb = self._engine.books['r']
+        # Camera rotation θ (camera axes): content moves by (-f θy, +f θx) and turns by -θz.
+        dx, dy = -f * g[1], f * g[0]
+        alpha = self._point['r'] * rb.unit          # current content angle (rad)
+        ca, sa = math.cos(alpha), math.sin(alpha)
+        # Model A shifts the map before the roll: the map-frame shift is Rot(-α) d.
+        self._engine.shift('h', ca * dx + sa * dy)
+        self._engine.shift('v', -sa * dx + ca * dy)
+        self._engine.shift('r', -g[2] / rb.unit)
+
+    # -- public ----------------------------------------------------------------------------
+
+    def step(self, image: NDArray[Any], t_ns: int, *,
+             gyro_delta: NDArray[Any] | None = None) -> Estimate:
+        """Process one event frame.
+
+        Args:
+            image: Binary (or any non-negative) event frame.
+            t_ns: Frame time, int64 ns.
+            gyro_delta: Integrated gyro since the previous frame (rad, camera axes), applied as
+                the prediction step (paper Eq. 10) when given.
+
+        Returns:
+            The pose readout; an empty frame repeats the previous pose with ``valid=False``.
+
+        Shapes:
+            image: (height, width); gyro_delta: (3,).
+
+        Raises:
+            TrackingError: for a frame of the wrong shape or with non-finite values.
+        """
+        c = self.cfg
+        if image.shape != (c.height, c.width):
+            raise TrackingError(f'event frame has shape {image.shape}, expected '
+                                f'({c.height}, {c.width}): match the packetizer size to '
+                                'resonator width/height')
+        img = np.asarray(image, dtype=np.float64)
+        if not np.all(np.isfinite(img)):
+            raise TrackingError('event frame contains non-finite values')
+        if not img.any():
+            return self._repeat(t_ns)
+        canvas = self._place(img)
+        eng = self._engine
+        if not self._started:
+            eng.start(canvas, self.rng)
+            self._started = True
+        elif gyro_delta is not None:
+            self._imu_predict(gyro_delta)
+        S = eng.encode(canvas)
+        for _ in range(c.cleanup.iterations_per_frame):
+            eng.iterate(S)
+            self.iteration += 1
+        sims = eng.similarities()
+        point, spread, peak = self._readout(sims)
+        self._point = point
+        updated = False
+        if c.map.learn and self.iteration > c.map.block_iterations:
+            eng.update_map(S, point, c.map.mu1, c.map.mu2)
+            updated = True
+        return self._emit(t_ns, point, spread, peak, sims, updated)
+
+    def _emit(self, t_ns: int, point: dict[str, float], spread: dict[str, float],
+              peak: dict[str, float], sims: dict[str, Real], updated: bool) -> Estimate:
+        books = self._engine.books
+        for name, idx in point.items():
+            b = books[name]
+            val = b.sign * b.unit * idx
+            if b.period is not None:            # unwrap against the previous output
+                per = b.period * b.unit
+                prev = self._out[name]
+                val = prev + ((val - prev + 0.5 * per) % per - 0.5 * per)
+            self._out[name] = val
+        est = Estimate(t_ns=int(t_ns), h=self._out['h'], v=self._out['v'], r=self._out['r'],
+                       z=self._out['z'], confidence=peak, spread=spread,
+                       iteration=self.iteration, map_updated=updated, similarity=sims)
+        self._last = est
+        return est
+
+    def _repeat(self, t_ns: int) -> Estimate:
+        last = self._last
+        zeros = dict.fromkeys(self.factors, 0.0)
+        if last is None:
+            return Estimate(t_ns=int(t_ns), h=0.0, v=0.0, r=0.0, z=0.0, confidence=zeros,
+                            spread=zeros, iteration=self.iteration, valid=False)
+        return Estimate(t_ns=int(t_ns), h=last.h, v=last.v, r=last.r, z=last.z,
+                        confidence=zeros, spread=last.spread, iteration=self.iteration,
+                        map_updated=False, similarity=last.similarity, valid=False)
+
+    def map_image(self) -> Real:
+        """The map as an intensity image on the canvas (allocentric, first frame's frame).
+
+        Shapes:
+            returns (canvas_height, canvas_width) float64.
+        """
+        return self._engine.map_image(None)
+
+    def egocentric_map_image(self) -> Real:
+        """The map moved by the current estimate into the camera's view (for overlays).
+
+        Shapes:
+            returns (canvas_height, canvas_width) float64; the frame sits at ``geometry.offset``.
+        """
+        return self._engine.map_image(dict(self._point))
