@@ -384,31 +384,43 @@ class _FastEngine:
         bound = self.col_norm[name] * float(np.linalg.norm(a))
         return fhrr.phasor(self.X[name] @ cleanup_weights(c, self.cfg.cleanup, bound))
 
+    def send(self, name: str, x: Complex) -> Complex:
+        """Hook: the population ``name`` (S, m, p, l) sends ``x`` (identity here; the spiking
+        backend, core/spiking, returns the value its phase-coded spikes carry)."""
+        return x
+
+    def update(self, name: str, x: Complex, a: Complex) -> Complex:
+        """Hook: the state update x̂ ← (1-γ) x̂ + γ C_X(a) of factor ``name`` from its marginal
+        drive ``a`` (the spiking backend replaces it with its neuron layers)."""
+        gam = self.cfg.cleanup.gamma
+        return (1 - gam) * x + gam * self._clean(name, a)
+
     def iterate(self, S: Complex) -> None:
         st = self.state
-        gam = self.cfg.cleanup.gamma
         h, v, r = st['h'], st['v'], st['r']
         z = st.get('z')
-        mc = self.m.conj()
+        S = self.send('S', S)
+        m = self.send('m', self.m)
+        mc = m.conj()
         q = S * r.conj()[None, :]
         if z is not None:
             q *= z.conj()[:, None]
-        u = self.lp.reverse(q)                      # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
+        u = self.send('p', self.lp.reverse(q))      # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
         u *= mc                                     # p̂ ⊙ m̂*
         a_h = v.conj() @ u                          # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
         a_v = u @ h.conj()                          # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
-        w = self.lp.forward(self.m * v[:, None] * h[None, :])   # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
+        w = self.send('l', self.lp.forward(m * v[:, None] * h[None, :]))  # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
         np.conjugate(w, out=w)
         w *= S                                      # S ⊙ l̂*
         if z is not None:
             a_r = z.conj() @ w
             a_z = w @ r.conj()
-            st['z'] = (1 - gam) * z + gam * self._clean('z', a_z)
+            st['z'] = self.update('z', z, a_z)
         else:
             a_r = w.sum(axis=0)
-        st['h'] = (1 - gam) * h + gam * self._clean('h', a_h)
-        st['v'] = (1 - gam) * v + gam * self._clean('v', a_v)
-        st['r'] = (1 - gam) * r + gam * self._clean('r', a_r)
+        st['h'] = self.update('h', h, a_h)
+        st['v'] = self.update('v', v, a_v)
+        st['r'] = self.update('r', r, a_r)
 
     def similarities(self) -> dict[str, Real]:
         return {k: _normalised(self.XH[k] @ x, x, self.col_norm[k])
@@ -595,14 +607,17 @@ class HRN:
         c = self.cfg
         self.geometry = make_geometry(c.width, c.height, c.codebook.canvas_width,
                                       c.codebook.canvas_height, c.logpolar)
-        self._engine: _Engine
-        if c.path == 'fast':
-            self._engine = _FastEngine(c, self.geometry)
-        else:
-            self._engine = _DenseEngine(c, self.geometry, rng, dense_dtype)
+        self._engine: _Engine = self._make_engine(rng, dense_dtype)
         self.factors: tuple[str, ...] = tuple(self._engine.books)
         self._canvas = np.zeros((self.geometry.canvas_height, self.geometry.canvas_width))
         self.reset()
+
+    def _make_engine(self, rng: np.random.Generator,
+                     dense_dtype: type[np.complexfloating]) -> _Engine:
+        """The engine for ``self.cfg`` (hook: the spiking backend returns its own fast engine)."""
+        if self.cfg.path == 'fast':
+            return _FastEngine(self.cfg, self.geometry)
+        return _DenseEngine(self.cfg, self.geometry, rng, dense_dtype)
 
     def reset(self) -> None:
         """Forget the map and the states; the next non-empty frame starts a new map."""
