@@ -28,6 +28,9 @@ setup(
     entry_points={
         'console_scripts': [
             'hrn-vo = hrn_vo_ros.cli.main:main',
+            'packetizer_node = hrn_vo_ros.nodes.packetizer_node:main',
+            'resonator_node = hrn_vo_ros.nodes.resonator_node:main',
+            'bag_recorder = hrn_vo_ros.nodes.bag_recorder:main',
         ],
     },
 )

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.odometry import OdometryConfig
+from hrn_vo_ros.errors import ConfigError
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,7 +37,11 @@ class PacketizerNodeConfig:
 
 @dataclass(frozen=True, slots=True)
 class ResonatorNodeConfig:
-    """Settings of ``resonator_node`` besides the resonator's own."""
+    """Settings of ``resonator_node`` besides the resonator's own.
+
+    The IMU switch is the resonator's ``imu.enabled`` (with ``imu.focal_px`` and
+    ``imu.camera_from_imu``): when true the node subscribes to ``~/imu``.
+    """
 
     odom_frame_id: str = param('odom', 'Parent frame of the odometry (REP-105)')
     base_frame_id: str = param('base_link', 'Child frame when odometry.child_frame = base_link')
@@ -46,12 +51,15 @@ class ResonatorNodeConfig:
                              'as robot_localization owns that transform)')
     map_image_rate_hz: float = param(2.0, 'Rate of ~/map_image and ~/readout_image, Hz '
                                      '(0 = never)', lo=0.0, hi=1000.0)
-    use_imu: bool = param(False, 'Subscribe to ~/imu and fuse the gyro (prediction step)',
-                          read_only=True)
-    imu_buffer_s: float = param(2.0, 'Length of the gyro buffer, seconds of sensor time',
-                                lo=0.01, hi=600.0, read_only=True)
+    seed: int = param(0, 'Seed of the random initial states (as hrn-vo run --seed)', lo=0,
+                      hi=2**31 - 1, read_only=True)
+    imu_buffer_samples: int = param(20000, 'Bound of the gyro buffer, samples (imu.enabled)',
+                                    lo=4, hi=10_000_000, read_only=True)
+    imu_timeout_s: float = param(0.5, 'Wall time without IMU after which frames waiting for '
+                                 'IMU samples are processed with what has arrived', lo=0.0,
+                                 hi=3600.0)
     max_pending_frames: int = param(200, 'Frames held while waiting for IMU samples that cover '
-                                    'them; beyond this the oldest is processed without',
+                                    'them; beyond this the oldest is processed anyway',
                                     lo=1, hi=100000, read_only=True)
     frames_depth: int = param(1000, 'Queue depth of the frame subscription (RELIABLE)',
                               lo=1, hi=100000, read_only=True)
@@ -64,3 +72,26 @@ class ResonatorNodeConfig:
 
     def __post_init__(self) -> None:
         validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class RecorderNodeConfig:
+    """Settings of ``bag_recorder`` (records topics as raw CDR into a ROS 2 bag)."""
+
+    output: str = param('', 'Bag directory to create (must not exist)', read_only=True)
+    storage: str = param('mcap', 'Bag storage', choices=('mcap', 'sqlite3'), read_only=True)
+    topics: tuple[str, ...] = param((), 'Topics to record as TOPIC:TYPE, e.g. '
+                                    '/resonator_node/odom:nav_msgs/msg/Odometry',
+                                    read_only=True)
+    depth: int = param(1000, 'Queue depth of each subscription (RELIABLE)', lo=1, hi=100000,
+                       read_only=True)
+    diagnostics_period_s: float = param(1.0, 'Period of the diagnostics message, seconds',
+                                        lo=0.01, hi=3600.0, read_only=True)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        for spec in self.topics:
+            topic, _, msgtype = spec.partition(':')
+            if not topic.startswith('/') or msgtype.count('/') != 2:
+                raise ConfigError(f'RecorderNodeConfig.topics entry {spec!r} is not '
+                                  'TOPIC:pkg/msg/Type with an absolute topic')

@@ -1,0 +1,231 @@
+"""rclpy messages ↔ numpy/core values: the only I/O module that imports ROS message classes.
+
+Topics and types of the node graph:
+
+* frames: ``sensor_msgs/Image``, ``mono8``, one byte per pixel, 0 or 255, ``header.stamp`` =
+  the frame (packet midpoint) time on the **sensor clock**.
+* raw readouts (``~/readout``): ``sensor_msgs/JointState`` — a standard, stamped, labelled
+  vector that rqt_plot/PlotJuggler understand. ``name = ['h', 'v', 'r'(, 'z')]``, ``position`` =
+  the readout values (h, v in downsampled pixels, r in radians, z log scale), ``effort`` = the
+  per-factor readout confidence (0..1), ``velocity`` empty; ``header.stamp`` = frame time.
+* ``~/pose`` (PoseStamped), ``~/odom`` (Odometry), ``/tf`` (TFMessage) from an
+  :class:`~hrn_vo_ros.core.odometry.OdomPose`; images of the map/readout as ``mono8``.
+
+Every decoder raises :class:`~hrn_vo_ros.errors.DecodeError` on malformed input, so nodes count
+and log it instead of crashing. No function here needs ``rclpy.init``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+import importlib
+import math
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TransformStamped
+from nav_msgs.msg import Odometry
+import numpy as np
+from numpy.typing import NDArray
+from sensor_msgs.msg import Image, JointState
+from tf2_msgs.msg import TFMessage
+
+from hrn_vo_ros.core.events import EventArray
+from hrn_vo_ros.core.odometry import OdomPose
+from hrn_vo_ros.errors import DecodeError
+from hrn_vo_ros.io.eventpacket import PacketDecoder
+
+LEVELS = {'ok': DiagnosticStatus.OK, 'warn': DiagnosticStatus.WARN,
+          'error': DiagnosticStatus.ERROR, 'stale': DiagnosticStatus.STALE}
+
+
+def ns_to_stamp(t_ns: int) -> Time:
+    """A ``builtin_interfaces/Time`` for int64 nanoseconds (non-negative)."""
+    if t_ns < 0:
+        raise DecodeError(f'time {t_ns} ns is negative; ROS stamps start at 0')
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    return Time(sec=sec, nanosec=nsec)
+
+
+def stamp_to_ns(stamp: Any) -> int:
+    """Int64 nanoseconds of a ``builtin_interfaces/Time``."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def events_from_packet(msg: Any, decoder: PacketDecoder) -> EventArray:
+    """Decode an ``event_camera_msgs/EventPacket`` (mono, evt3) into events (sensor time).
+
+    Args:
+        msg: The message.
+        decoder: The topic's stateful decoder (evt3 carries time state across packets).
+
+    Raises:
+        DecodeError: on an unknown encoding or a corrupt payload.
+    """
+    return decoder.decode(str(msg.encoding), np.frombuffer(msg.events, np.uint8),
+                          time_base=int(msg.time_base), is_bigendian=bool(msg.is_bigendian))
+
+
+def frame_to_image(image: NDArray[np.uint8], t_ns: int, frame_id: str) -> Image:
+    """A binary frame (0/1) as a ``mono8`` Image with values 0/255.
+
+    Shapes:
+        image: (H, W) uint8 with values 0 or 1.
+    """
+    h, w = image.shape
+    msg = Image(height=h, width=w, encoding='mono8', is_bigendian=0, step=w)
+    msg.header.stamp = ns_to_stamp(t_ns)
+    msg.header.frame_id = frame_id
+    msg.data = (image.astype(np.uint8, copy=False) * np.uint8(255)).tobytes()
+    return msg
+
+
+def image_to_frame(msg: Any) -> tuple[int, NDArray[np.uint8]]:
+    """``(t_ns, image)`` of a ``mono8``/``8UC1`` frame message, image values 0/1.
+
+    Shapes:
+        image: (H, W) uint8.
+
+    Raises:
+        DecodeError: on another encoding, a size mismatch or pixel values other than 0/255.
+    """
+    if msg.encoding not in ('mono8', '8UC1'):
+        raise DecodeError(f'frame encoding {msg.encoding!r} is not supported; publish mono8')
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.frombuffer(msg.data, np.uint8)
+    if h <= 0 or w <= 0 or step < w or data.size != h * step:
+        raise DecodeError(f'frame of {h}x{w} with step {step} carries {data.size} bytes')
+    image = data.reshape(h, step)[:, :w]
+    if np.any((image != 0) & (image != 255)):
+        raise DecodeError('frame pixels must be 0 or 255 (binary event frames)')
+    return stamp_to_ns(msg.header.stamp), (image > 0).astype(np.uint8)
+
+
+def float_image_to_mono8(image: NDArray[np.floating[Any]], t_ns: int, frame_id: str) -> Image:
+    """A real image scaled min..max to 0..255 as ``mono8`` (map and readout visualisation).
+
+    Shapes:
+        image: (H, W) float.
+    """
+    img = np.nan_to_num(np.asarray(image, dtype=np.float64))
+    lo, hi = float(img.min(initial=0.0)), float(img.max(initial=0.0))
+    scaled = np.zeros(img.shape, np.uint8) if hi <= lo else np.round(
+        (img - lo) * (255.0 / (hi - lo))).astype(np.uint8)
+    h, w = scaled.shape
+    msg = Image(height=h, width=w, encoding='mono8', is_bigendian=0, step=w)
+    msg.header.stamp = ns_to_stamp(t_ns)
+    msg.header.frame_id = frame_id
+    msg.data = scaled.tobytes()
+    return msg
+
+
+def imu_to_arrays(msg: Any) -> tuple[int, NDArray[np.float64], NDArray[np.float64]]:
+    """``(t_ns, gyro, acc)`` of a ``sensor_msgs/Imu`` (stamp = sensor time).
+
+    Shapes:
+        gyro: (3,) rad/s; acc: (3,) m/s^2.
+
+    Raises:
+        DecodeError: if the angular velocity is not finite.
+    """
+    w, a = msg.angular_velocity, msg.linear_acceleration
+    gyro = np.array([w.x, w.y, w.z], dtype=np.float64)
+    acc = np.array([a.x, a.y, a.z], dtype=np.float64)
+    if not np.all(np.isfinite(gyro)):
+        raise DecodeError(f'IMU angular velocity {gyro.tolist()} is not finite')
+    return stamp_to_ns(msg.header.stamp), gyro, acc
+
+
+def pose_to_pose_stamped(pose: OdomPose, frame_id: str) -> PoseStamped:
+    """``geometry_msgs/PoseStamped`` of a pose in ``frame_id``."""
+    msg = PoseStamped()
+    msg.header.stamp = ns_to_stamp(pose.t_ns)
+    msg.header.frame_id = frame_id
+    p, q = msg.pose.position, msg.pose.orientation
+    p.x, p.y, p.z = (float(c) for c in pose.position)
+    q.x, q.y, q.z, q.w = (float(c) for c in pose.quat)
+    return msg
+
+
+def pose_to_odometry(pose: OdomPose, frame_id: str, child_frame_id: str,
+                     twist_variance: float) -> Odometry:
+    """``nav_msgs/Odometry`` with the pose covariance; the twist is not estimated.
+
+    The twist is zero with ``twist_variance`` on its diagonal (unknown, not "exactly zero").
+    """
+    msg = Odometry()
+    msg.header.stamp = ns_to_stamp(pose.t_ns)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    p.x, p.y, p.z = (float(c) for c in pose.position)
+    q.x, q.y, q.z, q.w = (float(c) for c in pose.quat)
+    msg.pose.covariance = np.ascontiguousarray(pose.covariance, np.float64).reshape(36)
+    msg.twist.covariance = (np.eye(6) * twist_variance).reshape(36)
+    return msg
+
+
+def pose_to_tf(pose: OdomPose, frame_id: str, child_frame_id: str) -> TFMessage:
+    """A ``tf2_msgs/TFMessage`` with the one transform ``frame_id`` → ``child_frame_id``."""
+    tf = TransformStamped()
+    tf.header.stamp = ns_to_stamp(pose.t_ns)
+    tf.header.frame_id = frame_id
+    tf.child_frame_id = child_frame_id
+    t, q = tf.transform.translation, tf.transform.rotation
+    t.x, t.y, t.z = (float(c) for c in pose.position)
+    q.x, q.y, q.z, q.w = (float(c) for c in pose.quat)
+    return TFMessage(transforms=[tf])
+
+
+def readout_to_joint_state(t_ns: int, values: Mapping[str, float],
+                           confidence: Mapping[str, float]) -> JointState:
+    """The raw readout topic message (see the module docstring)."""
+    msg = JointState()
+    msg.header.stamp = ns_to_stamp(t_ns)
+    names = list(values)
+    msg.name = names
+    msg.position = [float(values[k]) for k in names]
+    msg.effort = [float(confidence.get(k, math.nan)) for k in names]
+    return msg
+
+
+def joint_state_to_readout(msg: Any) -> tuple[int, dict[str, float], dict[str, float]]:
+    """``(t_ns, values, confidence)`` of a raw readout message."""
+    names = list(msg.name)
+    pos, eff = list(msg.position), list(msg.effort)
+    if len(pos) != len(names):
+        raise DecodeError(f'readout names {names} and positions {pos} differ in length')
+    conf = dict(zip(names, eff, strict=True)) if len(eff) == len(names) else {}
+    return stamp_to_ns(msg.header.stamp), dict(zip(names, pos, strict=True)), conf
+
+
+def diagnostics(t_ns: int, name: str, hardware_id: str, level: str, message: str,
+                values: Sequence[tuple[str, object]]) -> DiagnosticArray:
+    """A ``DiagnosticArray`` with one status (level ``ok``/``warn``/``error``/``stale``)."""
+    status = DiagnosticStatus(level=LEVELS[level], name=name, message=message,
+                              hardware_id=hardware_id)
+    status.values = [KeyValue(key=k, value=str(v)) for k, v in values]
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = ns_to_stamp(t_ns)
+    return msg
+
+
+def diagnostic_values(msg: Any) -> dict[str, str]:
+    """The key/values of the first status of a ``DiagnosticArray`` (for tests and tools)."""
+    if not msg.status:
+        return {}
+    return {kv.key: kv.value for kv in msg.status[0].values}
+
+
+def message_class(msgtype: str) -> Any:
+    """The rclpy message class of ``pkg/msg/Name``.
+
+    Raises:
+        DecodeError: if the package or message is not installed.
+    """
+    pkg, kind, name = (msgtype.split('/') + ['', ''])[:3]
+    try:
+        return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+    except (ImportError, AttributeError, ValueError) as err:
+        raise DecodeError(f'message type {msgtype!r} is not installed ({err})') from err

@@ -1,0 +1,183 @@
+"""``resonator_node``: binary event frames in, odometry out (the HRN as an odometry source).
+
+Subscribes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, RELIABLE) and, when the resonator's
+``imu.enabled`` is true, ``~/imu`` (``sensor_msgs/Imu``, sensor-data QoS; frames wait, bounded,
+until a gyro sample at or after their time arrived). Publishes, stamped with the frame time:
+
+* ``~/readout`` — raw h, v, r [, z] as ``sensor_msgs/JointState`` (io/ros_msgs.py);
+* ``~/pose`` (PoseStamped) and ``~/odom`` (nav_msgs/Odometry with covariance) in
+  ``odom_frame_id``; ``/tf`` when ``publish_tf``;
+* ``~/map_image`` and ``~/readout_image`` (mono8, at most ``map_image_rate_hz``);
+* ``/diagnostics``: frame rate, processing time, tracking confidence, rejected messages.
+
+Parameters: the fields of ``ResonatorConfig`` and ``ResonatorNodeConfig`` (same names).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+import sys
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Image, Imu, JointState
+from tf2_msgs.msg import TFMessage
+
+from hrn_vo_ros.core.hrn import HRN, ResonatorConfig
+from hrn_vo_ros.core.imubuffer import GyroBuffer
+from hrn_vo_ros.core.nodeconfig import ResonatorNodeConfig
+from hrn_vo_ros.core.nodestats import NodeStats
+from hrn_vo_ros.core.odometry import readout_to_pose
+from hrn_vo_ros.errors import HrnVoError
+from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.nodes.common import publish_diagnostics, qos, Rejects, run
+from hrn_vo_ros.nodes.params import declare_config
+
+
+class ResonatorNode(Node):
+    """Event frames → HRN → pose, odometry, raw readouts (see the module docstring)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('resonator_node', **kwargs)
+        self._algo = declare_config(self, ResonatorConfig, on_change=self._reconfigure)
+        self._opts = declare_config(self, ResonatorNodeConfig)
+        opts, cfg = self._opts.config, self._algo.config
+        self._hrn = HRN(cfg, rng=np.random.default_rng(opts.seed))
+        self.stats = NodeStats()
+        self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
+        self._last_t: int | None = None
+        self._prev_frame_t: int | None = None
+        self._pending: deque[tuple[int, np.ndarray]] = deque()
+        self._last_imu_wall = time.monotonic()
+        self._last_image_wall = 0.0
+        self._confidence: dict[str, float] = {}
+        self._gyro = GyroBuffer(np.reshape(cfg.imu.camera_from_imu, (3, 3)),
+                                max_samples=opts.imu_buffer_samples)
+        reliable = qos(1000)
+        self._pub_readout = self.create_publisher(JointState, '~/readout', reliable)
+        self._pub_pose = self.create_publisher(PoseStamped, '~/pose', reliable)
+        self._pub_odom = self.create_publisher(Odometry, '~/odom', reliable)
+        self._pub_map = self.create_publisher(Image, '~/map_image', 2)
+        self._pub_readout_img = self.create_publisher(Image, '~/readout_image', 2)
+        self._pub_tf = self.create_publisher(TFMessage, '/tf', 100) if opts.publish_tf else None
+        self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.create_subscription(Image, '~/frames', self._on_frame, qos(opts.frames_depth))
+        if cfg.imu.enabled:
+            self.create_subscription(Imu, '~/imu', self._on_imu, qos_profile_sensor_data)
+        self.create_timer(opts.diagnostics_period_s, self._on_timer)
+        self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
+                               f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
+
+    def _reconfigure(self, cfg: ResonatorConfig) -> None:
+        """A tunable changed: a new resonator with the same seed (tracking restarts)."""
+        self._hrn = HRN(cfg, rng=np.random.default_rng(self._opts.config.seed))
+        self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
+
+    def _on_frame(self, msg: Image) -> None:
+        self.stats.count('frames_in')
+        try:
+            t_ns, image = ros_msgs.image_to_frame(msg)
+        except HrnVoError as err:
+            self._reject('decode', err)
+            return
+        cfg = self._algo.config
+        if image.shape != (cfg.height, cfg.width):
+            self._reject('size', f'frame of {image.shape[1]}x{image.shape[0]} pixels, expected '
+                         f'{cfg.width}x{cfg.height} (match packetizer downsample and resonator '
+                         'width/height)')
+            return
+        if self._last_t is not None and t_ns < self._last_t:
+            self._reject('time_backwards', f'frame at {t_ns} ns after one at {self._last_t} ns')
+            return
+        self._last_t = t_ns
+        if not cfg.imu.enabled:
+            self._process(t_ns, image, None)
+            return
+        self._pending.append((t_ns, image))
+        self._drain(force=False)
+
+    def _on_imu(self, msg: Imu) -> None:
+        self.stats.count('imu_in')
+        try:
+            t_ns, gyro, _ = ros_msgs.imu_to_arrays(msg)
+            self._gyro.add(t_ns, gyro)
+        except HrnVoError as err:
+            self._reject('imu', err)
+            return
+        self._last_imu_wall = time.monotonic()
+        self._drain(force=False)
+
+    def _drain(self, *, force: bool) -> None:
+        """Process waiting frames whose gyro increment is final (or all, when forced)."""
+        limit = self._opts.config.max_pending_frames
+        while self._pending and (force or len(self._pending) > limit
+                                 or self._gyro.covers(self._pending[0][0])):
+            t_ns, image = self._pending.popleft()
+            prev = self._prev_frame_t
+            delta = None if prev is None else self._gyro.delta(prev, t_ns)
+            self._process(t_ns, image, delta)
+            self._gyro.trim(t_ns)
+
+    def _process(self, t_ns: int, image: np.ndarray, gyro_delta: np.ndarray | None) -> None:
+        t0 = time.perf_counter()
+        self._prev_frame_t = t_ns
+        try:
+            est = self._hrn.step(image, t_ns, gyro_delta=gyro_delta)
+        except HrnVoError as err:
+            self._reject('tracking', err)
+            return
+        opts = self._opts.config
+        values = {'h': est.h, 'v': est.v, 'r': est.r}
+        if 'z' in self._hrn.factors:
+            values['z'] = est.z
+        z = est.z if 'z' in values else None
+        self._confidence = est.confidence
+        pose = readout_to_pose(opts.odometry, t_ns, est.h, est.v, est.r, z, est.confidence)
+        child = opts.base_frame_id if opts.odometry.child_frame == 'base_link' \
+            else opts.camera_frame_id
+        self._pub_readout.publish(ros_msgs.readout_to_joint_state(t_ns, values, est.confidence))
+        self._pub_pose.publish(ros_msgs.pose_to_pose_stamped(pose, opts.odom_frame_id))
+        self._pub_odom.publish(ros_msgs.pose_to_odometry(
+            pose, opts.odom_frame_id, child, opts.odometry.unobserved_variance))
+        if self._pub_tf is not None:
+            self._pub_tf.publish(ros_msgs.pose_to_tf(pose, opts.odom_frame_id, child))
+        self.stats.count('estimates_out')
+        self.stats.count('invalid_frames', 0 if est.valid else 1)
+        self.stats.processing(time.perf_counter() - t0)
+        self._publish_images(t_ns)
+
+    def _publish_images(self, t_ns: int) -> None:
+        rate = self._opts.config.map_image_rate_hz
+        now = time.monotonic()
+        if rate <= 0.0 or now - self._last_image_wall < 1.0 / rate:
+            return
+        self._last_image_wall = now
+        frame = self._opts.config.camera_frame_id
+        self._pub_map.publish(ros_msgs.float_image_to_mono8(self._hrn.map_image(), t_ns, frame))
+        self._pub_readout_img.publish(
+            ros_msgs.float_image_to_mono8(self._hrn.egocentric_map_image(), t_ns, frame))
+
+    def _on_timer(self) -> None:
+        if self._pending and time.monotonic() - self._last_imu_wall > \
+                self._opts.config.imu_timeout_s:
+            self._drain(force=True)
+        extra: list[tuple[str, object]] = [
+            ('frame_rate_hz', f'{self.stats.rate("estimates_out"):.1f}'),
+            ('pending_frames', len(self._pending)), ('gyro_samples', len(self._gyro))]
+        extra += [(f'confidence_{k}', f'{v:.3f}') for k, v in sorted(self._confidence.items())]
+        publish_diagnostics(self, self._diag, self.stats, extra)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``resonator_node`` (``--ros-args`` are passed through)."""
+    return run(ResonatorNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,40 @@
+"""The streaming gyro buffer gives the batch integrator's increments (core/imubuffer.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hrn_vo_ros.core.imu import GyroIntegrator
+from hrn_vo_ros.core.imubuffer import GyroBuffer
+from hrn_vo_ros.core.sequence import ImuData
+from hrn_vo_ros.errors import DatasetError
+
+
+def test_streaming_increments_equal_batch(rng: np.random.Generator) -> None:
+    t_imu = np.cumsum(rng.integers(800_000, 1_200_000, 400)).astype(np.int64)
+    gyro = rng.normal(size=(400, 3))
+    rot = np.array([[0.0, 1, 0], [-1, 0, 0], [0, 0, 1]])
+    frames = np.sort(rng.integers(t_imu[0] - 5_000_000, t_imu[-1] + 5_000_000, 120))
+    want = GyroIntegrator(ImuData(t_imu, np.zeros_like(gyro), gyro), rot).deltas(frames)
+    buf = GyroBuffer(rot, max_samples=100)
+    got, j, prev = [np.zeros(3)], 0, int(frames[0])
+    for t in frames[1:]:
+        while j < len(t_imu) and not buf.covers(int(t)):
+            buf.add(int(t_imu[j]), gyro[j])
+            j += 1
+        got.append(buf.delta(prev, int(t)))
+        buf.trim(int(t))
+        prev = int(t)
+    np.testing.assert_allclose(np.array(got), want, atol=1e-12)
+    assert len(buf) < 100
+
+
+def test_bad_samples_are_refused() -> None:
+    buf = GyroBuffer()
+    buf.add(10, np.zeros(3))
+    with pytest.raises(DatasetError, match='not finite'):
+        buf.add(20, np.array([0.0, np.nan, 0.0]))
+    with pytest.raises(DatasetError, match='does not increase'):
+        buf.add(10, np.zeros(3))
+    np.testing.assert_array_equal(buf.delta(0, 100), np.zeros(3))

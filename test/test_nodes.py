@@ -1,0 +1,183 @@
+"""packetizer_node and resonator_node as real rclpy nodes over DDS: data flow and bad input."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+import math
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from event_camera_msgs.msg import EventPacket
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Image, Imu, JointState
+
+from hrn_vo_ros.core.events import EventArray
+from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig
+from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.io.eventpacket import encode_mono
+from hrn_vo_ros.nodes.common import qos
+from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+from hrn_vo_ros.nodes.resonator_node import ResonatorNode
+
+pytestmark = pytest.mark.ros
+PER_FRAME = 500
+
+
+def random_events(rng: np.random.Generator, n: int, t0: int = 1_000_000) -> EventArray:
+    t = t0 + np.cumsum(rng.integers(1, 2000, n))
+    return EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                  rng.integers(0, 2, n))
+
+
+def packet(ev: EventArray, seq: int, encoding: str = 'mono') -> EventPacket:
+    base, payload = encode_mono(ev)
+    msg = EventPacket(height=180, width=240, seq=seq, time_base=base, encoding=encoding,
+                      is_bigendian=False)
+    msg.events = payload.tobytes()
+    return msg
+
+
+class Graph:
+    """The two nodes plus a probe node that feeds and listens, on one executor."""
+
+    def __init__(self, imu: bool = False) -> None:
+        params = [Parameter('events_per_frame', value=PER_FRAME),
+                  Parameter('events_reliable', value=True), Parameter('diagnostics_period_s',
+                                                                      value=0.2)]
+        remap = ['--ros-args', '-r', '~/frames:=/frames']
+        self.packetizer = PacketizerNode(parameter_overrides=params, cli_args=remap)
+        self.resonator = ResonatorNode(cli_args=remap, parameter_overrides=[
+            Parameter('diagnostics_period_s', value=0.2), Parameter('imu.enabled', value=imu),
+            Parameter('imu.focal_px', value=80.0), Parameter('imu_timeout_s', value=0.3)])
+        self.probe = Node('probe')
+        self.ev_pub = self.probe.create_publisher(EventPacket, '/packetizer_node/events',
+                                                  qos(1000))
+        self.frame_pub = self.probe.create_publisher(Image, '/frames', qos(100))
+        self.imu_pub = self.probe.create_publisher(Imu, '/resonator_node/imu', qos(100))
+        self.frames: list[Image] = []
+        self.readouts: list[JointState] = []
+        self.odoms: list[Odometry] = []
+        self.diags: dict[str, dict[str, str]] = {}
+        self.probe.create_subscription(Image, '/frames', self.frames.append,
+                                       qos(1000))
+        self.probe.create_subscription(JointState, '/resonator_node/readout',
+                                       self.readouts.append, qos(1000))
+        self.probe.create_subscription(Odometry, '/resonator_node/odom', self.odoms.append,
+                                       qos(1000))
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 100)
+        self.ex = SingleThreadedExecutor()
+        for n in (self.packetizer, self.resonator, self.probe):
+            self.ex.add_node(n)
+        self.wait(lambda: self.ev_pub.get_subscription_count() > 0
+                  and self.frame_pub.get_subscription_count() > 0)
+
+    def _on_diag(self, msg: DiagnosticArray) -> None:
+        self.diags[msg.status[0].name.split(':')[0]] = ros_msgs.diagnostic_values(msg)
+
+    def wait(self, cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if cond():
+                return True
+            self.ex.spin_once(timeout_sec=0.02)
+        return cond()
+
+    def close(self) -> None:
+        for n in (self.packetizer, self.resonator, self.probe):
+            n.destroy_node()
+
+
+@pytest.fixture
+def graph() -> Iterator[Graph]:
+    rclpy.init()
+    g = Graph()
+    try:
+        yield g
+    finally:
+        g.close()
+        rclpy.try_shutdown()
+
+
+def test_packets_become_frames_and_odometry(graph: Graph, rng: np.random.Generator) -> None:
+    ev = random_events(rng, 10 * PER_FRAME + 123)
+    cuts = [0, 7, 900, 901, 2600, 5000, len(ev)]      # splits frames, spans several frames
+    for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+        graph.ev_pub.publish(packet(ev[a:b], seq=i))
+    assert graph.wait(lambda: len(graph.odoms) >= 10)
+    t_ref, images = frames_from_events(ev, PacketizerConfig(events_per_frame=PER_FRAME))
+    got = [ros_msgs.image_to_frame(m) for m in graph.frames]
+    assert [t for t, _ in got] == t_ref.tolist()
+    assert all(np.array_equal(img, ref) for (_, img), ref in zip(got, images, strict=True))
+    assert graph.frames[0].encoding == 'mono8' and max(graph.frames[0].data) == 255
+    assert graph.frames[0].header.frame_id == 'event_camera_optical_frame'
+    assert [ros_msgs.stamp_to_ns(m.header.stamp) for m in graph.odoms] == t_ref.tolist()
+    assert list(graph.readouts[-1].name) == ['h', 'v', 'r']
+    odom = graph.odoms[-1]
+    assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
+    assert all(math.isfinite(c) for c in odom.pose.covariance) and odom.pose.covariance[0] > 0
+    assert graph.wait(lambda: graph.diags.get('resonator_node', {}).get('estimates_out') == '10')
+
+
+def test_malformed_packets_are_counted_and_survived(graph: Graph,
+                                                    rng: np.random.Generator) -> None:
+    ev = random_events(rng, 4 * PER_FRAME)
+    graph.ev_pub.publish(packet(ev[:PER_FRAME], 0))
+    graph.ev_pub.publish(packet(ev[PER_FRAME:2 * PER_FRAME], 1, encoding='libcaer_cmp'))
+    graph.ev_pub.publish(packet(EventArray.empty(), 2))
+    bad_xy = EventArray.from_arrays(ev.t[:10] + ev.t[-1], np.full(10, 300), ev.y[:10],
+                                    ev.p[:10])
+    graph.ev_pub.publish(packet(bad_xy, 3))
+    graph.ev_pub.publish(packet(ev[:PER_FRAME], 4))                 # back in time
+    graph.ev_pub.publish(packet(ev[2 * PER_FRAME:], 7))              # seq gap of 2, good data
+    assert graph.wait(lambda: graph.diags.get('packetizer_node', {}).get('frames_out') == '3')
+    d = graph.diags['packetizer_node']
+    assert (d['bad_decode'], d['bad_empty'], d['bad_out_of_sensor'], d['bad_time_backwards'],
+            d['seq_gaps']) == ('1', '1', '1', '1', '2')
+    assert len(graph.frames) == 3
+
+
+def test_malformed_frames_are_counted_and_survived(graph: Graph) -> None:
+    good = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 2_000_000, 'cam')
+    rgb = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 3_000_000, 'cam')
+    rgb.encoding = 'rgb8'
+    small = ros_msgs.frame_to_image(np.eye(10, 10, dtype=np.uint8), 4_000_000, 'cam')
+    old = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 1_000_000, 'cam')
+    later = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 5_000_000, 'cam')
+    for m in (good, rgb, small, old, later):
+        graph.frame_pub.publish(m)
+    assert graph.wait(lambda: graph.diags.get('resonator_node', {}).get('bad_total') == '3'
+                      and len(graph.odoms) == 2)
+    d = graph.diags['resonator_node']
+    assert (d['bad_decode'], d['bad_size'], d['bad_time_backwards']) == ('1', '1', '1')
+
+
+def test_imu_frames_wait_for_gyro_and_nan_imu_is_rejected() -> None:
+    rclpy.init()
+    g = Graph(imu=True)
+    try:
+        def imu(t_ns: int, wz: float) -> Imu:
+            m = Imu()
+            m.header.stamp = ros_msgs.ns_to_stamp(t_ns)
+            m.angular_velocity.z = wz
+            return m
+        g.wait(lambda: g.imu_pub.get_subscription_count() > 0)
+        for k in range(1, 4):
+            g.frame_pub.publish(ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8),
+                                                        k * 10_000_000, 'cam'))
+        g.imu_pub.publish(imu(0, 0.0))
+        g.imu_pub.publish(imu(15_000_000, math.nan))
+        g.imu_pub.publish(imu(25_000_000, 1.0))
+        assert g.wait(lambda: len(g.odoms) == 2)          # the third still waits for IMU
+        g.ex.spin_once(timeout_sec=0.1)
+        assert len(g.odoms) == 2
+        assert g.wait(lambda: len(g.odoms) == 3, timeout=3.0)   # imu_timeout_s flushes it
+        assert g.wait(lambda: g.diags.get('resonator_node', {}).get('bad_imu') == '1')
+    finally:
+        g.close()
+        rclpy.try_shutdown()
