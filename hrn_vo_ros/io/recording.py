@@ -12,9 +12,13 @@ from collections import Counter
 from pathlib import Path
 import queue
 import threading
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from hrn_vo_ros.errors import BagError
-from hrn_vo_ros.io.bags import BagWriter, make_qos, Storage
+from hrn_vo_ros.io.bags import BagWriter, iter_messages, make_qos, open_bag, Storage, typestore
 
 _STOP = None
 
@@ -85,3 +89,39 @@ class BagRecorder:
             raise BagError(f'the bag writer did not finish within {timeout} s')
         if self._error is not None:
             raise BagError(f'recording failed: {self._error}') from self._error
+
+
+def read_readouts(bag: Path | str, topic: str) -> tuple[NDArray[np.int64],
+                                                         dict[str, NDArray[np.float64]]]:
+    """The raw readouts (``sensor_msgs/JointState``, io/ros_msgs.py) recorded on ``topic``.
+
+    Returns:
+        ``(t_ns, values)``: header stamps and one array per factor name (h, v, r [, z]).
+
+    Shapes:
+        t_ns: (n,) int64; values[name]: (n,) float64.
+
+    Raises:
+        BagError: if the bag is unreadable or the topic is missing.
+    """
+    reader = open_bag(bag)
+    try:
+        if topic not in {c.topic for c in reader.connections}:
+            raise BagError(f'{bag}: no topic {topic}; it has '
+                           f'{", ".join(sorted(c.topic for c in reader.connections))}')
+        ts = typestore()
+        stamps: list[int] = []
+        rows: list[list[float]] = []
+        names: list[str] = []
+        for m in iter_messages(reader, [topic]):
+            msg: Any = ts.deserialize_cdr(m.raw, m.msgtype)
+            stamps.append(int(msg.header.stamp.sec) * 1_000_000_000
+                          + int(msg.header.stamp.nanosec))
+            names = list(msg.name)
+            rows.append([float(v) for v in msg.position])
+    finally:
+        reader.close()
+    order = np.argsort(np.asarray(stamps, np.int64), kind='stable')
+    arr = np.asarray(rows, np.float64).reshape(len(rows), len(names))[order]
+    return (np.asarray(stamps, np.int64)[order],
+            {n: np.ascontiguousarray(arr[:, i]) for i, n in enumerate(names)})

@@ -23,6 +23,7 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     SetParametersResult,
 )
+from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -118,7 +119,7 @@ class ConfigParameters(Generic[C]):
         self._cls = cls
         self._prefix = prefix
         self._on_change = on_change
-        typs = leaf_types(cls)
+        typs = self._types = leaf_types(cls)
         infos = list(configbase.describe(cls))
         self.names = [prefix + i.name for i in infos]
         for info in infos:
@@ -127,7 +128,13 @@ class ConfigParameters(Generic[C]):
             if info.default is None:  # Optional without a value: dynamically typed NOT_SET
                 desc.type = Parameter.Type.NOT_SET.value
                 desc.dynamic_typing = True
-            node.declare_parameter(prefix + info.name, _ros_default(info.default), desc)
+            value: Any = _ros_default(info.default)
+            if value == []:  # an empty list has no element type: declare the type instead
+                value = _ros_type(typ)
+            try:
+                node.declare_parameter(prefix + info.name, value, desc)
+            except ParameterException as err:
+                raise ConfigError(f'parameter {prefix + info.name}: {err}') from err
         self.config: C = self.build(self.current_values())
         node.add_on_set_parameters_callback(self._validate)
         node.add_post_set_parameters_callback(self._apply)
@@ -135,7 +142,17 @@ class ConfigParameters(Generic[C]):
     def current_values(self) -> dict[str, Any]:
         """The node's current values of these parameters, by field name (dotted, no prefix)."""
         n = len(self._prefix)
-        return {name[n:]: _plain(self._node.get_parameter(name).value) for name in self.names}
+        out = {}
+        for name in self.names:
+            try:
+                value = self._node.get_parameter(name).value
+            except ParameterUninitializedException:
+                value = None
+            if value is None and self._types[name[n:]] is not None and typing.get_origin(
+                    self._types[name[n:]]) is tuple:
+                value = []  # declared by type (empty default) and not set
+            out[name[n:]] = _plain(value)
+        return out
 
     def build(self, values: dict[str, Any]) -> C:
         """The config for ``values`` (ConfigError if invalid)."""
