@@ -1,0 +1,110 @@
+"""Trajectory plots of a calibrated estimate against the ground truth (matplotlib, Agg).
+
+Public API:
+
+* :func:`plot_evaluation(result, out, *, title=None) <plot_evaluation>` — one PNG: the three
+  evaluated quantities over time (ground truth, estimate, calibration segment and evaluated part
+  shaded), the per-sample error, and a top view (pan/tilt or x/y plane).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use('Agg')
+
+from matplotlib.axes import Axes
+import matplotlib.pyplot as plt
+import numpy as np
+
+from hrn_vo_ros.core.evaluation import EvalResult
+
+_GT = '#d95f02'
+_EST = '#1b6ac9'
+_CAL = '#9ecae1'
+_TEST = '#e5e5e5'
+
+
+def _spans(ax: Axes, t: np.ndarray, mask: np.ndarray, color: str, label: str | None) -> None:
+    """Shade the time ranges where ``mask`` holds (contiguous runs)."""
+    if not np.any(mask):
+        return
+    idx = np.flatnonzero(mask)
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+    ends = np.concatenate([idx[breaks], [idx[-1]]])
+    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        ax.axvspan(t[a], t[b], color=color, alpha=0.5, lw=0, label=label if k == 0 else None,
+                   zorder=0)
+
+
+def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = None) -> Path:
+    """Write a PNG of the calibrated estimate against the ground truth.
+
+    Args:
+        result: An :class:`~hrn_vo_ros.core.evaluation.EvalResult`.
+        out: PNG path (parent folders are created).
+        title: Figure title (default: kind and headline metrics).
+
+    Returns:
+        The written path.
+    """
+    s = result.series
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig = plt.figure(figsize=(13, 8.5), dpi=110)
+    gs = fig.add_gridspec(4, 2, width_ratios=(2.3, 1), hspace=0.12, wspace=0.18)
+    axes = [fig.add_subplot(gs[i, 0]) for i in range(4)]
+    for ax in axes[1:]:
+        ax.sharex(axes[0])
+    for i in range(3):
+        ax = axes[i]
+        _spans(ax, s.t_s, s.calib, _CAL, 'calibration' if i == 0 else None)
+        _spans(ax, s.t_s, s.test & ~s.calib, _TEST, 'evaluated' if i == 0 else None)
+        ax.plot(s.t_s, s.gt[:, i], color=_GT, lw=1.4, label='ground truth' if i == 0 else None)
+        ax.plot(s.t_s, s.est[:, i], color=_EST, lw=0.9, label='estimate' if i == 0 else None)
+        ax.set_ylabel(f'{s.labels[i]} ({s.units[i]})')
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelbottom=False)
+    axes[0].legend(loc='upper left', ncol=4, fontsize=8, framealpha=0.9)
+    ax = axes[3]
+    _spans(ax, s.t_s, s.calib, _CAL, None)
+    _spans(ax, s.t_s, s.test & ~s.calib, _TEST, None)
+    ax.plot(s.t_s, s.err, color='#444444', lw=0.8)
+    med = float(np.median(s.err[s.test])) if np.any(s.test) else float('nan')
+    ax.axhline(med, color='#c51b7d', lw=1, ls='--', label=f'median (evaluated) {med:.3g}')
+    ax.set_ylabel(f'error, {s.err_label}')
+    ax.set_xlabel('time (s)')
+    ax.grid(alpha=0.3)
+    ax.legend(loc='upper left', fontsize=8)
+    top = np.percentile(s.err, 99) if len(s.err) else 1.0
+    ax.set_ylim(0, max(top * 1.2, 1e-6))
+
+    top_ax = fig.add_subplot(gs[0:3, 1])
+    top_ax.plot(s.gt[:, 0], s.gt[:, 1], color=_GT, lw=1.2, label='ground truth')
+    top_ax.plot(s.est[:, 0], s.est[:, 1], color=_EST, lw=0.7, alpha=0.85, label='estimate')
+    top_ax.plot(s.gt[0, 0], s.gt[0, 1], 'ko', ms=4, label='start')
+    top_ax.set_xlabel(f'{s.labels[0]} ({s.units[0]})')
+    top_ax.set_ylabel(f'{s.labels[1]} ({s.units[1]})')
+    top_ax.set_aspect('equal', adjustable='datalim')
+    top_ax.grid(alpha=0.3)
+    top_ax.legend(fontsize=8, loc='best')
+    top_ax.set_title('top view', fontsize=10)
+
+    txt_ax = fig.add_subplot(gs[3, 1])
+    txt_ax.axis('off')
+    lines = [f'lag {result.lag_s * 1e3:+.1f} ms, roll corr {result.roll_corr:.3f}',
+             f'calibration: {result.calibration.get("segment", "")}']
+    for k, v in result.metrics.items():
+        lines.append(f'{k} = {v:.4g}')
+    txt_ax.text(0, 1, '\n'.join(lines[:9]), va='top', ha='left', fontsize=8.5,
+                family='monospace')
+    if title is None:
+        head = next(iter(result.metrics.items()), ('', float('nan')))
+        title = f'{result.kind}: {head[0]} = {head[1]:.3g}'
+    fig.suptitle(title, fontsize=12)
+    fig.savefig(out, bbox_inches='tight')
+    plt.close(fig)
+    return out
