@@ -1,0 +1,162 @@
+"""Event arrays saved as NumPy files (robot-arm style recordings) and their trajectory files.
+
+Accepted event files:
+
+* ``.npy`` with a structured dtype holding fields ``t, x, y, p`` (any order and integer widths;
+  e.g. Metavision's ``EventCD`` ``x u2, y u2, p i2, t i8`` in microseconds), memory-mapped and
+  streamed in batches;
+* ``.npy`` of shape (n, 4) with columns ``t, x, y, p``;
+* ``.npz`` with arrays ``t, x, y, p``.
+
+Times are converted from ``time_unit`` (``'us'`` by default, as Metavision stores them; ``'s'``,
+``'ms'``, ``'ns'`` also) to int64 ns; float times are rounded to the nearest ns. Polarity ``p > 0``
+is ON. A trajectory file is TUM-like text, ``t px py pz qx qy qz qw`` per line (seconds; spaces or
+commas; ``#`` comments), the same layout as the Event Camera Dataset's ``groundtruth.txt``.
+
+Public API: :func:`iter_npy_events`, :func:`npy_event_count`, :func:`read_trajectory`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Literal
+import zipfile
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.events import EventArray
+from hrn_vo_ros.core.sequence import Trajectory
+from hrn_vo_ros.errors import DatasetError
+
+TimeUnit = Literal['s', 'ms', 'us', 'ns']
+_NS_PER = {'s': 1_000_000_000, 'ms': 1_000_000, 'us': 1_000, 'ns': 1}
+
+
+def _columns(path: Path) -> tuple[NDArray[np.generic], ...]:
+    """(t, x, y, p) arrays (memory-mapped for .npy) of an event file."""
+    if not path.is_file():
+        raise DatasetError('does not exist: give a .npy or .npz event file', path=path)
+    try:
+        if path.suffix == '.npz':
+            with np.load(path) as z:
+                missing = [k for k in 'txyp' if k not in z.files]
+                if missing:
+                    raise DatasetError(f'has arrays {", ".join(z.files)}; needs t, x, y, p',
+                                       path=path)
+                return tuple(np.asarray(z[k]) for k in 'txyp')
+        arr = np.load(path, mmap_mode='r', allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
+        raise DatasetError(f'cannot read NumPy file (truncated or not NumPy?): {err}',
+                           path=path) from err
+    if arr.dtype.names is not None:
+        missing = [k for k in 'txyp' if k not in arr.dtype.names]
+        if missing:
+            raise DatasetError(f'structured array with fields {", ".join(arr.dtype.names)}; '
+                               'needs t, x, y, p', path=path)
+        return tuple(arr[k] for k in 'txyp')
+    if arr.ndim == 2 and arr.shape[1] == 4:
+        return tuple(arr[:, i] for i in range(4))
+    raise DatasetError(f'array of shape {arr.shape} and dtype {arr.dtype}: expected a '
+                       'structured array with t, x, y, p or an (n, 4) array', path=path)
+
+
+def npy_event_count(path: Path | str) -> int:
+    """Number of events in a NumPy event file."""
+    return int(_columns(Path(path))[0].shape[0])
+
+
+def iter_npy_events(path: Path | str, *, time_unit: TimeUnit = 'us',
+                    sensor_size: tuple[int, int] | None = None,
+                    chunk_events: int = 1_000_000) -> Iterator[EventArray]:
+    """Stream a NumPy event file as batches of events (int64 ns).
+
+    Args:
+        path: The ``.npy`` / ``.npz`` file.
+        time_unit: Unit of ``t`` in the file.
+        sensor_size: (width, height) to check coordinates against (optional).
+        chunk_events: Batch size.
+
+    Raises:
+        DatasetError: unsorted times, negative or out-of-sensor coordinates, bad file.
+    """
+    path = Path(path)
+    if time_unit not in _NS_PER:
+        raise DatasetError(f'time unit {time_unit!r} is not one of {", ".join(_NS_PER)}')
+    t_col, x_col, y_col, p_col = _columns(path)
+    factor = _NS_PER[time_unit]
+    last = -(1 << 62)
+    for start in range(0, t_col.shape[0], chunk_events):
+        sl = slice(start, start + chunk_events)
+        t_raw = np.asarray(t_col[sl])
+        if np.issubdtype(t_raw.dtype, np.floating):
+            t = np.rint(t_raw.astype(np.float64) * factor).astype(np.int64)
+        else:
+            t = t_raw.astype(np.int64) * factor
+        x, y = np.asarray(x_col[sl]).astype(np.int64), np.asarray(y_col[sl]).astype(np.int64)
+        p = (np.asarray(p_col[sl]) > 0).astype(np.uint8)
+        if t.size == 0:
+            continue
+        bad = np.flatnonzero(np.diff(t, prepend=last) < 0)
+        if bad.size:
+            raise DatasetError(f'event {start + int(bad[0])}: time goes backwards; events must '
+                               'be sorted by time', path=path)
+        low = (x < 0) | (y < 0)
+        if sensor_size is not None:
+            low |= (x >= sensor_size[0]) | (y >= sensor_size[1])
+        bad = np.flatnonzero(low | (x > 65535) | (y > 65535))
+        if bad.size:
+            i = int(bad[0])
+            size = f'{sensor_size[0]}x{sensor_size[1]}' if sensor_size else 'uint16'
+            raise DatasetError(f'event {start + i} at x={x[i]}, y={y[i]} is outside the {size} '
+                               'sensor: give the right sensor size', path=path)
+        last = int(t[-1])
+        yield EventArray.from_arrays(t, x, y, p)
+
+
+def read_trajectory(path: Path | str) -> Trajectory:
+    """A TUM-like trajectory text file: ``t px py pz qx qy qz qw`` per line (seconds).
+
+    Raises:
+        DatasetError: naming the line for a wrong column count, a bad number or unsorted times.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError('does not exist: give a trajectory text file', path=path)
+    ts: list[int] = []
+    rows: list[list[float]] = []
+    header_allowed = True
+    for i, line in enumerate(path.read_text().splitlines()):
+        parts = line.replace(',', ' ').split()
+        if not parts or parts[0].startswith('#'):
+            continue
+        if header_allowed and not parts[0][:1].isdigit():
+            header_allowed = False  # one CSV header line ("t,px,...") before the data
+            continue
+        header_allowed = False
+        if len(parts) != 8:
+            raise DatasetError(f'expected 8 columns "t px py pz qx qy qz qw", got '
+                               f'{len(parts)}', path=path, line=i + 1)
+        try:
+            t = _seconds_to_ns(parts[0])
+            vals = [float(v) for v in parts[1:]]
+        except ValueError as err:
+            raise DatasetError(f'malformed line {line[:60]!r}: {err}', path=path,
+                               line=i + 1) from None
+        if ts and t < ts[-1]:
+            raise DatasetError('time goes backwards: lines must be sorted by time', path=path,
+                               line=i + 1)
+        ts.append(t)
+        rows.append(vals)
+    v = np.array(rows, np.float64).reshape(len(rows), 7)
+    return Trajectory(t=np.array(ts, np.int64), pos=np.ascontiguousarray(v[:, :3]),
+                      quat=np.ascontiguousarray(v[:, 3:]))
+
+
+def _seconds_to_ns(tok: str) -> int:
+    """Exact ns from decimal seconds text; other notations (``1e9``) via float."""
+    sec, dot, frac = tok.partition('.')
+    if sec.isdigit() and (not frac or frac.isdigit()) and len(frac) <= 9:
+        return int(sec) * 1_000_000_000 + (int(frac.ljust(9, '0')) if frac else 0)
+    return round(float(tok) * 1e9)
