@@ -1,7 +1,8 @@
 """Datasets to ROS 2 bags: what ``hrn-vo convert`` does, as a pure function.
 
 Sources (:func:`open_source`): an Event Camera Dataset text folder or its ``.zip``, an Event
-Camera Dataset ROS 1 ``.bag``, a NumPy event file (``.npy``/``.npz``, see
+Camera Dataset ROS 1 ``.bag``, a ROS 2 bag with an EventPacket topic of any known encoding
+(e.g. a live ``evt3`` recording; events only), a NumPy event file (``.npy``/``.npz``, see
 :mod:`hrn_vo_ros.io.npy`), or a folder holding ``events.npy``/``events.npz`` with the dataset's
 side files (``calib.txt``, ``imu.txt``, ``groundtruth.txt`` or a TUM-like ``trajectory.txt``,
 optional ``meta.json``). The simulator's output is a text folder, so it converts too.
@@ -86,6 +87,8 @@ def open_source(src: Path | str, *, sensor_size: tuple[int, int] | None = None,
     path = Path(src)
     if path.suffix == '.bag':
         return _open_ros1(path, sensor_size)
+    if path.is_dir() and (path / 'metadata.yaml').is_file():
+        return _open_ros2(path, sensor_size)
     if path.suffix in ('.npy', '.npz'):
         return _open_npy(path, path.parent, sensor_size, trajectory, time_unit, side=False)
     if path.is_dir():
@@ -150,6 +153,24 @@ def _open_ros1(path: Path, sensor_size: tuple[int, int] | None) -> Source:
 
     return Source(kind='ros1', path=path, events=events, width=width, height=height,
                   calib=calib, imu=ds.imu(), groundtruth=ds.groundtruth(), closer=stack)
+
+
+def _open_ros2(path: Path, sensor_size: tuple[int, int] | None) -> Source:
+    """A ROS 2 bag with an event topic (e.g. a live evt3 recording): re-packetised as mono."""
+    size = sensor_size
+    if size is None:
+        ts = bags.typestore()
+        with bags.open_bag(path) as reader:
+            conns = [c for c in reader.connections if c.msgtype == bags.EVENT_PACKET]
+            for m in bags.iter_messages(reader, [c.topic for c in conns][:1]):
+                msg: Any = ts.deserialize_cdr(m.raw, bags.EVENT_PACKET)
+                size = (int(msg.width), int(msg.height))
+                break
+    if size is None:
+        raise DatasetError('has no EventPacket messages to take the sensor size from; pass '
+                           '--sensor-size', path=path)
+    return Source(kind='ros2', path=path, events=lambda: bags.iter_bag_events(path),
+                  width=size[0], height=size[1])
 
 
 def _open_npy(events_file: Path, folder: Path, sensor_size: tuple[int, int] | None,
@@ -270,7 +291,8 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
             events_per_packet: int | None = None, packet_duration_ms: float | None = None,
             frame_id: str = 'event_camera', sensor_size: tuple[int, int] | None = None,
             trajectory: Path | str | None = None, time_unit: npy.TimeUnit = 'us',
-            progress: Callable[[int], None] | None = None) -> ConversionStats:
+            progress: Callable[[int], None] | None = None,
+            on_source: Callable[[Source], None] | None = None) -> ConversionStats:
     """Convert a dataset to a ROS 2 bag (see the module docstring for topics and stamps).
 
     Args:
@@ -284,6 +306,7 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
         trajectory: Ground-truth trajectory file for NumPy sources.
         time_unit: Time unit of NumPy files.
         progress: Called with the number of events of each converted batch.
+        on_source: Called once with the opened source (e.g. to size a progress bar).
 
     Raises:
         DatasetError: bad input (nothing is left at ``dst``).
@@ -301,6 +324,8 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
     bags._check_target(dst)
     source = open_source(src, sensor_size=sensor_size, trajectory=trajectory,
                          time_unit=time_unit)
+    if on_source is not None:
+        on_source(source)
     checksum = EventChecksum()
     n_packets = 0
     first_t: int | None = None
