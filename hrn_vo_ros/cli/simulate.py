@@ -44,9 +44,9 @@ def run(args: argparse.Namespace) -> int:
         kw['noise_rate_hz'] = args.noise_rate
     cfg = SimulatorConfig(**kw)
     start = time.monotonic()
-    with Progress(args.seconds, f'simulating {args.kind}', unit='s') as bar:
+    with Progress(args.seconds * 1000, f'simulating {args.kind} (sequence ms)') as bar:
         seq = simulate(args.kind, args.seconds, seed=args.seed, config=cfg,
-                       progress=bar.advance)
+                       progress=lambda s: bar.advance(1000 * s))
     sim_s = time.monotonic() - start
     write_sequence(out, seq)
     info = describe_motion(seq)

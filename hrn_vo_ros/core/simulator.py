@@ -148,7 +148,8 @@ class _Smooth:
     def __call__(self, t: F64) -> F64:
         tc = np.clip(t, 0.0, self.T)
         tau = self.g0 * tc + 0.5 * (self.g1 - self.g0) * tc * tc / self.T
-        tau = tau + self.g1 * (t - tc)  # continue linearly past the end (finite differences)
+        # continue linearly before the start and past the end (smooth finite differences)
+        tau = tau + np.where(t > tc, self.g1, self.g0) * (t - tc)
         env = self.e0 + (1.0 - self.e0) * tc / self.T
         s = np.sum(self.amp[:, None] * np.sin(2 * np.pi * self.f[:, None] * tau[None, :]
                                               + self.phase[:, None]), axis=0)
