@@ -1,0 +1,123 @@
+"""Throughput of dataset conversion and of the event codecs, measured side by side in one run.
+
+    scripts/run.sh python bench/bench_convert.py [--seconds 20] [--simulate] [--repeats 3]
+
+Builds a 20 s sequence (default: synthetic events at ~350 k/s, the rate of a simulated rotation
+sequence, ~7 M events; ``--simulate`` runs the project's simulator instead, which is slower),
+writes it in the Event Camera Dataset text layout, then times (medians of ``--repeats`` runs):
+
+* parsing ``events.txt`` alone (M lines/s),
+* ``hrn-vo convert`` to MCAP (M events/s; the acceptance figure, target >= 2),
+* reading the bag back and decoding mono (M events/s),
+* evt3 decoding of the same events (M events/s),
+
+and the ratios between them. The machine is shared: compare ratios, not absolute figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+import shutil
+import statistics
+import tempfile
+import time
+
+import numpy as np
+
+from hrn_vo_ros.core.events import EventArray, EventChecksum
+from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.io import bags, convert, ecd, eventpacket
+
+
+def synthetic(seconds: float, rate: float, seed: int = 0) -> Sequence:
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate)
+    t = np.sort(rng.integers(0, int(seconds * 1e9), n)) // 1000 * 1000
+    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                rng.integers(0, 2, n))
+    ti = np.arange(0, int(seconds * 1e9), 1_000_000, dtype=np.int64)
+    imu = ImuData(t=ti, acc=rng.normal(size=(ti.size, 3)), gyro=rng.normal(size=(ti.size, 3)))
+    tg = ti[::5]
+    gt = Trajectory(t=tg, pos=rng.normal(size=(tg.size, 3)),
+                    quat=np.tile([0.0, 0.0, 0.0, 1.0], (tg.size, 1)))
+    calib = CameraCalibration(width=240, height=180, fx=199.0, fy=198.0, cx=120.0, cy=90.0)
+    return Sequence(events=ev, calib=calib, imu=imu, groundtruth=gt)
+
+
+def timed(fn: object, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()  # type: ignore[operator]
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('--seconds', type=float, default=20.0)
+    ap.add_argument('--rate', type=float, default=350_000.0, help='synthetic events/s')
+    ap.add_argument('--simulate', action='store_true', help='use the simulator (rotation)')
+    ap.add_argument('--repeats', type=int, default=3)
+    args = ap.parse_args()
+    if args.simulate:
+        from hrn_vo_ros.core.simulator import simulate
+        t0 = time.perf_counter()
+        seq = simulate('rotation', args.seconds, seed=0)
+        print(f'simulated {args.seconds:g} s rotation in {time.perf_counter() - t0:.1f} s')
+    else:
+        seq = synthetic(args.seconds, args.rate)
+    n = len(seq.events)
+    work = Path(tempfile.mkdtemp(prefix='bench_convert_'))
+    try:
+        t0 = time.perf_counter()
+        folder = ecd.write_sequence(work / 'seq', seq)
+        write_s = time.perf_counter() - t0
+        size = (folder / 'events.txt').stat().st_size
+        print(f'{n} events ({n / args.seconds / 1e3:.0f} k/s), events.txt {size / 1e6:.0f} MB, '
+              f'written in {write_s:.1f} s ({n / write_s / 1e6:.2f} M lines/s)')
+
+        def parse() -> None:
+            for _ in ecd.iter_events(folder):
+                pass
+
+        runs = iter(range(10**6))
+        stats: list[convert.ConversionStats] = []
+
+        def conv() -> None:
+            stats.append(convert.convert(folder, work / f'bag{next(runs)}'))
+
+        def read_back() -> None:
+            c = EventChecksum()
+            for ev in bags.iter_bag_events(work / 'bag0'):
+                c.update(ev)
+            assert (c.count, c.hexdigest()) == (stats[0].events, stats[0].checksum)
+
+        sub = seq.events[:min(n, 1_000_000)]
+        stream = eventpacket.encode_evt3(sub)
+        words = stream.view('<u2')
+
+        def evt3() -> None:
+            dec = eventpacket.Evt3Decoder()
+            for part in np.array_split(words, 200):
+                dec.decode(part.view(np.uint8))
+
+        s_parse = timed(parse, args.repeats)
+        s_conv = timed(conv, args.repeats)
+        s_read = timed(read_back, args.repeats)
+        s_evt3 = timed(evt3, args.repeats)
+        print(f'parse events.txt   {n / s_parse / 1e6:6.2f} M lines/s  ({s_parse:.2f} s)')
+        print(f'convert to MCAP    {n / s_conv / 1e6:6.2f} M events/s ({s_conv:.2f} s, '
+              f'{stats[0].packets} packets)  target >= 2')
+        print(f'read bag + decode  {n / s_read / 1e6:6.2f} M events/s ({s_read:.2f} s)')
+        print(f'evt3 decode        {len(sub) / s_evt3 / 1e6:6.2f} M events/s '
+              f'({stream.size / len(sub):.2f} B/event)')
+        print(f'ratios: convert/parse {s_parse / s_conv:.2f}, read/convert {s_conv / s_read:.2f}')
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == '__main__':
+    main()
