@@ -1,0 +1,195 @@
+"""The resonator cleanup ``x <- (1-gamma) x + gamma f(X p(Re(X^H u))))`` as spiking layers.
+
+Layers of one factor (hrn_math.md §7.1 "Mapping to the HRN"), each one oscillation cycle:
+
+1. **input** phasor neurons: the (marginalised) unbound input ``u`` as phase-coded spikes with
+   graded payloads (:func:`~hrn_vo_ros.core.spiking.neurons.encode`);
+2. **similarity** neurons, one per codebook entry ``k``: RF neurons driven through the complex
+   synapses ``conj(X)^T``; their end-of-cycle real part is ``a_k = Re(X^H u)_k``. An inhibitory
+   input ``theta * sum_j |u_j|`` (one integrator neuron that sums all input payloads, fan-out K)
+   sets the threshold, and the neuron sends the graded spike ``p(a_k) = ReLU(a_k - theta
+   sum_j |u_j|)`` at the reference phase: the ReLU-like ``p`` of the seed's Eq. 4;
+3. **cleanup** neurons, one per vector element: RF neurons driven through the complex synapses
+   ``X``; each fires a *unit* spike at the phase of ``X p(a)``: the phasor projection ``f``;
+4. **state** neurons: RF neurons with a partial self-connection ``1 - gamma`` (their own previous
+   spike) and the cleanup spike with weight ``gamma``: ``x <- (1-gamma) x + gamma f(.)``. Their
+   graded spike is the new state.
+
+With ``precision='loihi'`` every layer runs the integer (RF-int) dynamics with quantised weights
+(``gamma`` and ``1 - gamma`` share one exponent); with ``'float'`` the same spikes are integrated
+in float.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.spiking.config import SpikingConfig
+from hrn_vo_ros.core.spiking.neurons import encode, rf_cycle_int, Spikes
+from hrn_vo_ros.core.spiking.synapses import ComplexSynapses, LayerCounts, scale_kicks
+
+Complex = NDArray[np.complex128]
+Real = NDArray[np.float64]
+
+LAYERS = ('input', 'similarity', 'threshold', 'cleanup', 'state')
+
+
+@dataclass(slots=True, eq=False)
+class SpikingCleanup:
+    """One factor's cleanup and state update as spiking phasor layers.
+
+    Args:
+        codebook: Codebook matrix ``X``, one column per entry (compact form for DFT factors:
+            the element axis is the factor's own frequency axis).
+        cfg: Spiking settings.
+        gamma: Update speed of the state, in (0, 1].
+        threshold: ``theta`` of ``p`` (default ``cfg.threshold``).
+        name: Factor name for the accounting.
+        p: The similarity neurons' output function of their state ``a`` (default: the ReLU
+            threshold above). A callable that needs ``max(a)`` stands for a K-input max
+            circuit, counted as one more layer of K neurons.
+        p_needs_max: Whether ``p`` uses the max over entries (accounting only).
+
+    Shapes:
+        codebook: (n, K).
+    """
+
+    codebook: Complex
+    cfg: SpikingConfig
+    gamma: float
+    threshold: float | None = None
+    name: str = 'x'
+    p: Callable[[Real], Real] | None = None
+    p_needs_max: bool = False
+    counts: dict[str, LayerCounts] = field(init=False)
+    last_input: Spikes | None = field(init=False, default=None)
+    _sim: ComplexSynapses = field(init=False)
+    _out: ComplexSynapses = field(init=False)
+    _mix: ComplexSynapses = field(init=False)
+    _theta: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        x = np.asarray(self.codebook, dtype=np.complex128)
+        self._sim = ComplexSynapses(x.conj().T, self.cfg, name=f'{self.name}.similarity')
+        self._out = ComplexSynapses(x, self.cfg, name=f'{self.name}.cleanup')
+        # Self-connection and input weight of each state neuron (one shared exponent).
+        self._mix = ComplexSynapses(np.array([[1.0 - self.gamma, self.gamma]]), self.cfg,
+                                    name=f'{self.name}.state')
+        self._theta = self.cfg.threshold if self.threshold is None else self.threshold
+        self.counts = {k: LayerCounts() for k in LAYERS}
+
+    @property
+    def size(self) -> int:
+        """Number of vector elements ``n``."""
+        return int(self.codebook.shape[0])
+
+    @property
+    def entries(self) -> int:
+        """Number of codebook entries ``K``."""
+        return int(self.codebook.shape[1])
+
+    def similarity(self, u: Spikes) -> Real:
+        """``p(a)`` of the similarity neurons for input spikes ``u`` (layers 2 and the inhibitor).
+
+        Shapes:
+            u: (n,); returns (K,) float64 (>= 0 for the ReLU).
+        """
+        a = self._sim.drive(u, self.counts['similarity']).real
+        c = self.counts['threshold']
+        if self.p is not None:
+            if self.p_needs_max:                 # K-input max (WTA) circuit: K neurons
+                c.spikes_in += self.entries
+                c.synops += self.entries * self.entries
+                c.neuron_updates += self.entries * self.cfg.steps_per_cycle
+            return np.asarray(self.p(a), dtype=np.float64)   # a negative p: phase pi
+        mass = float(np.ldexp(u.g.sum(dtype=np.float64), u.exp))
+        c.spikes_in += u.count
+        c.synops += u.count + self.entries       # payloads in, one inhibitory spike out to K
+        c.neuron_updates += self.cfg.steps_per_cycle
+        return np.maximum(a - self._theta * mass, 0.0)
+
+    def step(self, u: Complex, state: Spikes | None) -> tuple[Spikes, Real]:
+        """One resonator iteration of this factor.
+
+        Args:
+            u: The unbound input of the factor (end-of-cycle state of its input neurons).
+            state: The state neurons' previous spikes (``None`` at the first iteration: the
+                state becomes the cleanup output).
+
+        Returns:
+            ``(state, p)``: the new state spikes and the similarity neurons' ``p(a)``.
+
+        Shapes:
+            u: (n,); state: (n,); p: (K,).
+        """
+        cfg = self.cfg
+        u_sp = encode(u, cfg)
+        self.last_input = u_sp
+        ci = self.counts['input']
+        ci.spikes_in += u_sp.count
+        ci.neuron_updates += self.size * cfg.steps_per_cycle
+        p = self.similarity(u_sp)
+        # Similarity neurons fire at the reference phase (t = 0) with graded payload p.
+        p_sp = encode(p.astype(np.complex128), cfg, fire_threshold=0.0)
+        drive = self._out.drive(p_sp, self.counts['cleanup'])
+        # Unit spikes at the phase of X p(a): the phasor projection f.
+        # (a constant full-scale payload 2^B - 1 in units of 2^-B, i.e. ~1).
+        top = (1 << cfg.payload_bits) - 1
+        unit_g = np.where(np.abs(drive) > 0.0, np.int64(top), np.int64(0))
+        f_sp = Spikes(encode(drive, cfg, fire_threshold=0.0).t, unit_g,
+                      -cfg.payload_bits, cfg.steps_per_cycle)
+        if state is None:
+            prev_t, prev_g, prev_exp = f_sp.t, f_sp.g, f_sp.exp
+        else:
+            prev_t, prev_g, prev_exp = state.t, state.g, state.exp
+        # Each state neuron: inputs (own previous spike, cleanup spike), weights (1-g, g).
+        pair_t = np.stack([prev_t, f_sp.t], axis=1)                        # (n, 2)
+        # Bring both inputs to the same payload unit before the shared 2-input synapse.
+        e = max(prev_exp, f_sp.exp)
+        prev_scaled = np.rint(np.ldexp(prev_g.astype(np.float64), prev_exp - e)).astype(np.int64)
+        f_scaled = np.rint(np.ldexp(f_sp.g.astype(np.float64), f_sp.exp - e)).astype(np.int64)
+        pair_g = np.stack([prev_scaled, f_scaled], axis=1)
+        new = self._mix_drive(Spikes(pair_t, pair_g, e, cfg.steps_per_cycle))
+        out = encode(new, cfg, fire_threshold=0.0)
+        return out, p
+
+    def _mix_drive(self, pairs: Spikes) -> Complex:
+        """Drive of the state neurons: each sees only its own 2 inputs (vectorised over n)."""
+        n = pairs.t.shape[0]
+        c = self.counts['state']
+        c.spikes_in += int(np.count_nonzero(pairs.g))
+        c.synops += int(np.count_nonzero(pairs.g)) * (2 if self.cfg.synapse == 'kick' else 1)
+        c.neuron_updates += n * self.cfg.steps_per_cycle
+        w = self._mix.effective[0]                                          # (2,)
+        if not self.cfg.quantised:
+            return np.asarray(pairs.decode() @ w, dtype=np.complex128)
+        # Integer path: the closed form of (RF) applied per neuron equals the step loop for
+        # two inputs except for the fixed-point rotation; run the loop on all n neurons at once.
+        steps = self.cfg.steps_per_cycle
+        q = self._mix._q
+        assert q is not None
+        kre = np.zeros((n, steps), np.int64)
+        kim = np.zeros((n, steps), np.int64)
+        rows = np.arange(n)
+        for j in range(2):
+            if self.cfg.synapse == 'kick':
+                np.add.at(kre, (rows, pairs.t[:, j]), q.re[0, j] * pairs.g[:, j])
+                np.add.at(kim, (rows, pairs.t[:, j]), q.im[0, j] * pairs.g[:, j])
+            else:
+                assert self._mix._delay is not None
+                arrive = (pairs.t[:, j] + self._mix._delay[0, j]) % steps
+                np.add.at(kre, (rows, arrive), q.re[0, j] * pairs.g[:, j])
+        shift = self._mix._shift
+        re, im, sat = rf_cycle_int(scale_kicks(kre, shift), scale_kicks(kim, shift), self.cfg)
+        c.saturated += sat
+        return np.asarray((re + 1j * im) * 2.0**(q.exp + pairs.exp - shift), dtype=np.complex128)
+
+    def reset_counts(self) -> dict[str, LayerCounts]:
+        """Return the counts since the last reset and start new ones."""
+        out = self.counts
+        self.counts = {k: LayerCounts() for k in LAYERS}
+        return out

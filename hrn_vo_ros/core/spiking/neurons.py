@@ -1,0 +1,194 @@
+"""Spiking phasor neurons: the phase-to-timing code and resonate-and-fire (RF) integration.
+
+Phase-to-timing code (Frady & Sommer, "Robust computation with rhythmic spike patterns", PNAS
+116(36):18050, 2019, doi:10.1073/pnas.1902653116): a complex value ``z = |z| e^{i phi}`` is one
+spike per oscillation cycle of ``T`` time steps, at step
+
+    t(z) = round(phi * T / (2 pi)) mod T,           phase resolution omega = 2 pi / T,
+
+carrying a graded payload ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``B`` payload bits, ``e``
+a per-population exponent; Loihi 2 graded spikes). With ``B = 1`` spikes are binary and carry the
+phase only (TPAM: silent when ``|z|`` is below the firing threshold). A silent neuron has
+``g = 0``.
+
+Resonate-and-fire neuron, discrete time (the dynamics of Lava's ``RF`` process, ``proc/rf``, with
+the oscillator turning clockwise by one phase step per time step and no decay):
+
+    z[t+1] = e^{-i omega} (z[t] + a[t]),            z[0] = 0,                       (RF)
+
+so that after one cycle a kick ``a`` at step ``t`` has turned by ``-omega (T - t) = omega t``
+(mod 2 pi): ``z[T] = sum_t a[t] e^{i omega t}``. A presynaptic spike at ``t_j`` through a real
+weight therefore adds ``w g_j e^{i phi_j}``, a complex *kick* ``(w_re, w_im)`` adds
+``w g_j e^{i phi_j}`` with a complex ``w`` (complex synapse as a complex impulse), and a synaptic
+*delay* ``d`` adds ``e^{i omega d}`` (complex synapse as a delay; binding is phase addition). The
+neuron fires once in the next cycle when its turning state crosses the reference phase, i.e. at
+step ``round(arg z[T] / omega)``, if ``|z[T]|`` reaches its threshold: its spike time encodes the
+phase of the summed input and its (unit or graded) spike is the phasor projection ``f`` for free.
+
+Fixed point (``precision='loihi'``; Lava's bit-accurate RF model uses 12-bit sin/cos constants and
+a 24-bit state, hrn_math.md §7.1): with ``D`` fractional bits, ``c = round(cos(omega) 2^D)``,
+``s = round(sin(omega) 2^D)``,
+
+    re <- re + a_re ;  im <- im + a_im
+    re, im <- rnd((c re + s im) / 2^D), rnd((-s re + c im) / 2^D)                  (RF-int)
+
+with ``rnd`` round-half-up (an arithmetic shift after adding ``2^(D-1)``) and saturation at
+``±(2^(S-1) - 1)`` (``S`` state bits). The loop over the ``T`` steps runs vectorised over neurons;
+the kicks of all steps are gathered first (vectorised over time), so it costs ``T`` small array
+operations per layer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.spiking.config import SpikingConfig
+
+Complex = NDArray[np.complex128]
+Real = NDArray[np.float64]
+Int = NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Spikes:
+    """One cycle of a population of phasor neurons.
+
+    Attributes:
+        t: Spike step in ``[0, T)`` per neuron (meaningless where ``g == 0``).
+        g: Graded payload per neuron, ``0`` = silent.
+        exp: Power-of-two exponent of the payload unit: the value is ``g 2^exp e^{i 2 pi t/T}``.
+        steps: ``T``, the steps per cycle.
+
+    Shapes:
+        t, g: any shape (the population's layout), the same for both; int64.
+    """
+
+    t: Int
+    g: Int
+    exp: int
+    steps: int
+
+    @property
+    def count(self) -> int:
+        """Number of spikes (neurons that fired)."""
+        return int(np.count_nonzero(self.g))
+
+    def decode(self) -> Complex:
+        """The complex values the spikes carry, ``g 2^exp e^{i 2 pi t / T}``."""
+        unit = np.exp(2j * np.pi * np.arange(self.steps) / self.steps)
+        out: Complex = np.ldexp(self.g.astype(np.float64), self.exp) * unit[self.t]
+        return out
+
+    def phasor(self) -> Complex:
+        """Unit phasors at the spike phases (0 where silent)."""
+        unit = np.exp(2j * np.pi * np.arange(self.steps) / self.steps)
+        return np.where(self.g > 0, unit[self.t], 0.0)
+
+
+def phase_to_step(z: Complex, steps: int) -> Int:
+    """Spike step ``round(arg(z) T / 2 pi) mod T`` of each value.
+
+    Shapes:
+        z: any; returns the same shape, int64 in ``[0, steps)``.
+    """
+    return np.rint(np.angle(z) * (steps / (2.0 * np.pi))).astype(np.int64) % steps
+
+
+def payload_exponent(max_value: float, bits: int) -> int:
+    """Smallest power-of-two unit ``e`` with ``max_value / 2^e <= 2^bits - 1`` (a shared shift)."""
+    top = (1 << bits) - 1
+    if not max_value > 0.0 or not math.isfinite(max_value):
+        return 0
+    return math.ceil(math.log2(max_value / top))
+
+
+def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = None) -> Spikes:
+    """Send complex values as phase-coded spikes with graded payloads.
+
+    The payload unit is a power of two chosen from the population's largest magnitude (a
+    per-population shift, [design]); with ``payload_bits == 1`` every firing neuron carries the
+    unit payload and the population unit is the power of two nearest the mean magnitude of the
+    firing neurons (binary spikes keep the phase only).
+
+    Args:
+        z: Values to send.
+        cfg: Steps per cycle, payload bits and the default firing threshold.
+        fire_threshold: Neurons with ``|z| < fire_threshold * mean|z|`` stay silent (TPAM
+            threshold); default ``cfg.fire_threshold``.
+
+    Shapes:
+        z: any; the spikes have the same shape.
+    """
+    thr = cfg.fire_threshold if fire_threshold is None else fire_threshold
+    mag = np.abs(z)
+    t = phase_to_step(z, cfg.steps_per_cycle)
+    live = mag > 0.0
+    if thr > 0.0 and mag.size:
+        live &= mag >= thr * float(mag.mean())
+    if cfg.payload_bits == 1:
+        mean = float(mag[live].mean()) if live.any() else 0.0
+        e = round(math.log2(mean)) if mean > 0.0 else 0
+        return Spikes(t, live.astype(np.int64), e, cfg.steps_per_cycle)
+    e = payload_exponent(float(mag.max()) if mag.size else 0.0, cfg.payload_bits)
+    g = np.where(live, np.rint(np.ldexp(mag, -e)), 0.0).astype(np.int64)
+    return Spikes(t, g, e, cfg.steps_per_cycle)
+
+
+def rotation_constants(cfg: SpikingConfig) -> tuple[int, int]:
+    """Fixed-point ``(c, s) = round((cos omega, sin omega) 2^D)`` of (RF-int)."""
+    omega = 2.0 * np.pi / cfg.steps_per_cycle
+    scale = float(1 << cfg.decay_bits)
+    return round(math.cos(omega) * scale), round(math.sin(omega) * scale)
+
+
+def rf_cycle_float(kicks: Complex) -> Complex:
+    """End-of-cycle state of float RF neurons (RF), vectorised over neurons and steps.
+
+    Args:
+        kicks: ``a[n, t]``, the summed complex input of neuron ``n`` at step ``t``.
+
+    Shapes:
+        kicks: (n, T); returns (n,) ``z[T] = sum_t a[t] e^{i omega t}``.
+    """
+    steps = kicks.shape[-1]
+    out: Complex = kicks @ np.exp(2j * np.pi * np.arange(steps) / steps)
+    return out
+
+
+def rf_cycle_int(kick_re: Int, kick_im: Int, cfg: SpikingConfig) -> tuple[Int, Int, int]:
+    """End-of-cycle integer state of fixed-point RF neurons (RF-int).
+
+    Args:
+        kick_re: Real part of the integer input per neuron and step.
+        kick_im: Imaginary part, same shape.
+        cfg: Steps per cycle, rotation and state bits.
+
+    Returns:
+        ``(re, im, saturated)``: the state after ``T`` steps and the number of neuron-steps that
+        hit the state bound.
+
+    Shapes:
+        kick_re, kick_im: (n, T); re, im: (n,).
+    """
+    c, s = rotation_constants(cfg)
+    shift = cfg.decay_bits
+    half = 1 << (shift - 1)
+    bound = (1 << (cfg.state_bits - 1)) - 1
+    n, steps = kick_re.shape
+    re = np.zeros(n, np.int64)
+    im = np.zeros(n, np.int64)
+    saturated = 0
+    for t in range(steps):
+        re += kick_re[:, t]
+        im += kick_im[:, t]
+        re, im = (c * re + s * im + half) >> shift, (c * im - s * re + half) >> shift
+        over = (np.abs(re) > bound) | (np.abs(im) > bound)
+        if over.any():
+            saturated += int(over.sum())
+            np.clip(re, -bound, bound, out=re)
+            np.clip(im, -bound, bound, out=im)
+    return re, im, saturated

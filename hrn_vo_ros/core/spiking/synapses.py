@@ -1,0 +1,258 @@
+"""Complex synapses between phasor populations, with Loihi weight and delay limits.
+
+Weights (Davies et al. 2018; brian2_loihi in hrn_math.md §7.1): a synaptic weight is a signed
+integer mantissa of ``B`` bits (``weight_bits``; Loihi: 8, reduced by ``num_weight_bits``) times a
+power of two shared by all synapses of one connection (Loihi: ``2^(6 + wgt_exp)``,
+``wgt_exp`` in [-8, 7]). Here the shared exponent is chosen so that the largest weight component
+of the connection uses the full mantissa range ``[-2^(B-1), 2^(B-1) - 1]``; the absolute range of
+``wgt_exp`` is not enforced because the emulation's value unit is arbitrary ([design]).
+
+Two realisations of a complex weight ``w = |w| e^{i psi}`` (hrn_math.md §7.1):
+
+* ``synapse='kick'``: a complex impulse into a resonate-and-fire neuron, two real weights
+  ``(Re w, Im w)`` (two synaptic operations per spike, like Lava's RF with real and imaginary
+  dense inputs). Quantisation error: the ``B``-bit mantissa of each component.
+* ``synapse='delay'``: a real weight ``|w|`` and a delay ``d = round(psi T / 2 pi) mod T <= T - 1
+  <= max_delay`` (one synaptic operation). Timing error: ``psi`` on the ``2 pi / T`` grid.
+
+In the steady state the input repeats every cycle, so one window of ``T`` steps sees every input
+exactly once, at step ``(t_j + d) mod T`` ([design]: the emulation integrates that window).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.spiking.config import SpikingConfig
+from hrn_vo_ros.core.spiking.neurons import phase_to_step, rf_cycle_int, Spikes
+from hrn_vo_ros.errors import ConfigError
+
+Complex = NDArray[np.complex128]
+Real = NDArray[np.float64]
+Int = NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class QuantisedWeights:
+    """Integer weight mantissas with one shared power-of-two exponent.
+
+    Attributes:
+        re: Real mantissas. im: Imaginary mantissas (zero for real weights).
+        exp: Shared exponent: the weight is ``(re + i im) 2^exp``.
+
+    Shapes:
+        re, im: the weight matrix's shape, int64.
+    """
+
+    re: Int
+    im: Int
+    exp: int
+
+    def value(self) -> Complex:
+        """The quantised weights as complex numbers."""
+        return np.asarray((self.re + 1j * self.im) * 2.0**self.exp, dtype=np.complex128)
+
+
+def quantise_weights(w: Complex | Real, bits: int) -> QuantisedWeights:
+    """Round weights to ``bits``-bit signed mantissas with one shared exponent.
+
+    The relative error of the largest component is at most ``2^-(bits-1)``; every component's
+    absolute error is at most half a mantissa step, ``2^(exp-1)``.
+
+    Shapes:
+        w: any; the mantissas have the same shape.
+    """
+    if bits < 2:
+        raise ConfigError(f'signed weights need at least 2 bits, got weight_bits = {bits}')
+    wc = np.asarray(w, dtype=np.complex128)
+    top = (1 << (bits - 1)) - 1
+    largest = float(max(np.abs(wc.real).max(initial=0.0), np.abs(wc.imag).max(initial=0.0)))
+    exp = math.ceil(math.log2(largest / top)) if largest > 0.0 else 0
+    lo = -(1 << (bits - 1))
+    re = np.clip(np.rint(np.ldexp(wc.real, -exp)), lo, top).astype(np.int64)
+    im = np.clip(np.rint(np.ldexp(wc.imag, -exp)), lo, top).astype(np.int64)
+    return QuantisedWeights(re, im, exp)
+
+
+#: Range of Loihi's weight scale ``2^(6 + wgt_exp)``, ``wgt_exp`` in [-8, 7] (hrn_math.md §7.1).
+SHIFT_RANGE = (-2, 13)
+
+
+def _fit_shift(worst: float, cfg: SpikingConfig) -> int:
+    """Largest shift in ``SHIFT_RANGE`` that keeps ``worst * 2^shift`` inside the state bits."""
+    bound = (1 << (cfg.state_bits - 1)) - 1
+    if worst <= 0:
+        return SHIFT_RANGE[1]
+    # 1/8 headroom: the fixed-point rotation's gain |c + i s| / 2^D may exceed 1 a little.
+    return int(np.clip(math.floor(math.log2(bound / (1.125 * worst))), *SHIFT_RANGE))
+
+
+def state_shift(q: QuantisedWeights, cfg: SpikingConfig) -> int:
+    """The left shift from ``mantissa * payload`` into the neuron state (Loihi ``6 + wgt_exp``).
+
+    Chosen per connection as the largest value in ``SHIFT_RANGE`` for which the worst-case input
+    of one cycle (every presynaptic neuron at full payload, all kicks aligned) cannot exceed the
+    state bits, so the integer state never saturates and keeps as many fractional bits as it can
+    ([design]; a hardware mapping would pick ``wgt_exp`` the same way).
+    """
+    row = (np.abs(q.re) + np.abs(q.im)).sum(axis=-1)
+    worst = float(row.max(initial=0)) * ((1 << cfg.payload_bits) - 1)
+    return _fit_shift(worst, cfg)
+
+
+def scale_kicks(k: Int, shift: int) -> Int:
+    """``k * 2^shift`` (a right shift rounds half up)."""
+    if shift >= 0:
+        return k << shift
+    return (k + (1 << (-shift - 1))) >> -shift
+
+
+@dataclass(slots=True)
+class LayerCounts:
+    """Operation counts of one layer for one cycle (accumulated over a run by the caller)."""
+
+    spikes_in: int = 0
+    synops: int = 0
+    neuron_updates: int = 0
+    saturated: int = 0
+
+
+@dataclass(slots=True, eq=False)
+class ComplexSynapses:
+    """Dense complex synapses from ``n_in`` phasor neurons onto ``n_out`` RF neurons.
+
+    Args:
+        weights: The complex weight matrix ``W`` (row = target neuron).
+        cfg: Spiking settings (realisation, bits, precision).
+        name: Layer name for the accounting.
+
+    Shapes:
+        weights: (n_out, n_in).
+    """
+
+    weights: Complex
+    cfg: SpikingConfig
+    name: str = 'synapses'
+    _eff: Complex = field(init=False)
+    _q: QuantisedWeights | None = field(init=False, default=None)
+    _delay: Int | None = field(init=False, default=None)
+    _nnz_col: Int = field(init=False)
+    _shift: int = field(init=False, default=0)
+
+    def __post_init__(self) -> None:
+        w = np.asarray(self.weights, dtype=np.complex128)
+        if w.ndim != 2:
+            raise ConfigError(f'{self.name}: the weight matrix must be 2-D, got {w.shape}')
+        if w.shape[1] > self.cfg.max_fan_in:
+            msg = (f'{self.name}: fan-in {w.shape[1]} exceeds SpikingConfig.max_fan_in = '
+                   f'{self.cfg.max_fan_in}; split the layer (e.g. marginalise first) or raise '
+                   f'max_fan_in')
+            raise ConfigError(msg)
+        steps = self.cfg.steps_per_cycle
+        omega = 2.0 * np.pi / steps
+        if self.cfg.synapse == 'delay':
+            self._delay = phase_to_step(w, steps)
+            if int(self._delay.max(initial=0)) > self.cfg.max_delay:
+                raise ConfigError(f'{self.name}: a delay exceeds max_delay = '
+                                  f'{self.cfg.max_delay}; choose fewer steps_per_cycle')
+            mag = np.abs(w)
+            if self.cfg.quantised:
+                self._q = quantise_weights(mag, self.cfg.weight_bits)
+                mag = self._q.value().real
+            self._eff = mag * np.exp(1j * omega * self._delay)
+        else:
+            if self.cfg.quantised:
+                self._q = quantise_weights(w, self.cfg.weight_bits)
+                self._eff = self._q.value()
+            else:
+                self._eff = w
+        if self._q is not None:
+            self._shift = state_shift(self._q, self.cfg)
+        per_syn = 2 if self.cfg.synapse == 'kick' else 1
+        self._nnz_col = per_syn * np.count_nonzero(w, axis=0).astype(np.int64)
+
+    @property
+    def effective(self) -> Complex:
+        """The complex weights as realised (quantised mantissas, or delays on the grid)."""
+        return self._eff
+
+    def drive(self, spikes: Spikes, counts: LayerCounts | None = None) -> Complex:
+        """End-of-cycle state of the target neurons, in value units.
+
+        ``precision='float'`` evaluates (RF) in closed form (``W_eff`` times the decoded spikes);
+        ``'loihi'`` gathers the integer kicks per step and runs (RF-int).
+
+        Shapes:
+            spikes: (n_in,); returns (n_out,) complex128.
+        """
+        n_out = self._eff.shape[0]
+        steps = self.cfg.steps_per_cycle
+        if counts is not None:
+            fired = spikes.g > 0
+            counts.spikes_in += int(fired.sum())
+            counts.synops += int(self._nnz_col[fired].sum())
+            counts.neuron_updates += n_out * steps
+        if self._q is None:
+            return np.asarray(self._eff @ spikes.decode(), dtype=np.complex128)
+        g = spikes.g.astype(np.float64)
+        if self.cfg.synapse == 'kick':
+            onehot = np.zeros((g.shape[0], steps))
+            onehot[np.arange(g.shape[0]), spikes.t] = g
+            kre = np.rint(self._q.re.astype(np.float64) @ onehot).astype(np.int64)
+            kim = np.rint(self._q.im.astype(np.float64) @ onehot).astype(np.int64)
+        else:
+            assert self._delay is not None
+            arrive = (spikes.t[None, :] + self._delay) % steps            # (n_out, n_in)
+            idx = (np.arange(n_out)[:, None] * steps + arrive).ravel()
+            wts = (self._q.re * spikes.g[None, :]).ravel().astype(np.float64)
+            kre = np.rint(np.bincount(idx, wts, n_out * steps)).astype(np.int64)
+            kre = kre.reshape(n_out, steps)
+            kim = np.zeros_like(kre)
+        re, im, sat = rf_cycle_int(scale_kicks(kre, self._shift), scale_kicks(kim, self._shift),
+                                   self.cfg)
+        if counts is not None:
+            counts.saturated += sat
+        return np.asarray((re + 1j * im) * 2.0**(self._q.exp + spikes.exp - self._shift),
+                          dtype=np.complex128)
+
+
+def marginal_drive(spikes: Spikes, axis: int, cfg: SpikingConfig,
+                   counts: LayerCounts | None = None) -> Complex:
+    """Sum a 2-D phasor population along ``axis`` into RF neurons (unit weights, no delay).
+
+    This is the fan-in reduction of the DFT cleanups (hrn_math.md §3.2: ``H† u`` needs only the
+    ``k_y``-marginal of ``u``): neuron ``k`` of the other axis receives the spikes of its row or
+    column through equal weights, so its end-of-cycle state is the complex sum of their values.
+
+    Shapes:
+        spikes: (a, b); returns (b,) for axis 0, (a,) for axis 1.
+    """
+    if spikes.t.ndim != 2:
+        raise ConfigError(f'marginal_drive needs a 2-D population, got shape {spikes.t.shape}')
+    fan_in = spikes.t.shape[axis]
+    if fan_in > cfg.max_fan_in:
+        msg = (f'marginal over {fan_in} neurons exceeds SpikingConfig.max_fan_in = '
+               f'{cfg.max_fan_in}; raise max_fan_in or use a smaller canvas')
+        raise ConfigError(msg)
+    t = spikes.t if axis == 1 else spikes.t.T
+    g = spikes.g if axis == 1 else spikes.g.T
+    n_out, steps = t.shape[0], cfg.steps_per_cycle
+    if counts is not None:
+        counts.spikes_in += int(np.count_nonzero(g))
+        counts.synops += int(np.count_nonzero(g))
+        counts.neuron_updates += n_out * steps
+    if not cfg.quantised:
+        return np.asarray(spikes.decode().sum(axis=axis), dtype=np.complex128)
+    idx = (np.arange(n_out)[:, None] * steps + t).ravel()
+    kre = np.rint(np.bincount(idx, g.ravel().astype(np.float64), n_out * steps))
+    kre = kre.astype(np.int64).reshape(n_out, steps)
+    top = (1 << cfg.payload_bits) - 1
+    shift = _fit_shift(fan_in * top, cfg)
+    re, im, sat = rf_cycle_int(scale_kicks(kre, shift), np.zeros_like(kre), cfg)
+    if counts is not None:
+        counts.saturated += sat
+    return np.asarray((re + 1j * im) * 2.0**(spikes.exp - shift), dtype=np.complex128)
