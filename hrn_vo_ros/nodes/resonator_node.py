@@ -10,7 +10,9 @@ until a gyro sample at or after their time arrived). Publishes, stamped with the
 * ``~/map_image`` and ``~/readout_image`` (mono8, at most ``map_image_rate_hz``);
 * ``/diagnostics``: frame rate, processing time, tracking confidence, rejected messages.
 
-Parameters: the fields of ``ResonatorConfig`` and ``ResonatorNodeConfig`` (same names).
+Parameters: the fields of ``ResonatorConfig`` and ``ResonatorNodeConfig`` (same names), and
+``backend.name`` (``float`` or ``spiking``) with ``backend.spiking.*`` (``BackendConfig``).
+``loihi_node`` is this node preset to the spiking backend.
 """
 
 from __future__ import annotations
@@ -29,7 +31,8 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
-from hrn_vo_ros.core.hrn import HRN, ResonatorConfig
+from hrn_vo_ros.core.backends import BackendConfig, make_backend
+from hrn_vo_ros.core.hrn import ResonatorConfig
 from hrn_vo_ros.core.imubuffer import GyroBuffer
 from hrn_vo_ros.core.nodeconfig import ResonatorNodeConfig
 from hrn_vo_ros.core.nodestats import NodeStats
@@ -43,12 +46,15 @@ from hrn_vo_ros.nodes.params import declare_config
 class ResonatorNode(Node):
     """Event frames → HRN → pose, odometry, raw readouts (see the module docstring)."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__('resonator_node', **kwargs)
+    def __init__(self, node_name: str = 'resonator_node', **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
         self._algo = declare_config(self, ResonatorConfig, on_change=self._reconfigure)
         self._opts = declare_config(self, ResonatorNodeConfig)
+        self._backend = declare_config(self, BackendConfig, prefix='backend.',
+                                       on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
-        self._hrn = HRN(cfg, rng=np.random.default_rng(opts.seed))
+        self._hrn = make_backend(cfg, rng=np.random.default_rng(opts.seed),
+                                 backend=self._backend.config)
         self.stats = NodeStats()
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._last_t: int | None = None
@@ -76,7 +82,8 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        self._hrn = HRN(cfg, rng=np.random.default_rng(self._opts.config.seed))
+        self._hrn = make_backend(cfg, rng=np.random.default_rng(self._opts.config.seed),
+                                 backend=self._backend.config)
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
     def _on_frame(self, msg: Image) -> None:
@@ -171,7 +178,12 @@ class ResonatorNode(Node):
             ('frame_rate_hz', f'{self.stats.rate("estimates_out"):.1f}'),
             ('pending_frames', len(self._pending)), ('gyro_samples', len(self._gyro))]
         extra += [(f'confidence_{k}', f'{v:.3f}') for k, v in sorted(self._confidence.items())]
+        extra += self._extra_diagnostics()
         publish_diagnostics(self, self._diag, self.stats, extra)
+
+    def _extra_diagnostics(self) -> list[tuple[str, object]]:
+        """Hook for presets (loihi_node): more key/values for the diagnostics message."""
+        return []
 
 
 def main(args: list[str] | None = None) -> int:
