@@ -30,6 +30,7 @@ setup(
             'hrn-vo = hrn_vo_ros.cli.main:main',
             'packetizer_node = hrn_vo_ros.nodes.packetizer_node:main',
             'resonator_node = hrn_vo_ros.nodes.resonator_node:main',
+            'loihi_node = hrn_vo_ros.nodes.loihi_node:main',
             'bag_recorder = hrn_vo_ros.nodes.bag_recorder:main',
         ],
     },
