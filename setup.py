@@ -32,6 +32,7 @@ setup(
             'resonator_node = hrn_vo_ros.nodes.resonator_node:main',
             'loihi_node = hrn_vo_ros.nodes.loihi_node:main',
             'bag_recorder = hrn_vo_ros.nodes.bag_recorder:main',
+            'bag_player = hrn_vo_ros.nodes.bag_player:main',
         ],
     },
 )

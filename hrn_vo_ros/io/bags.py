@@ -19,7 +19,6 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 import functools
 import os
@@ -204,8 +203,17 @@ def _check_bag_path(path: Path) -> None:
         raise BagError(f'{path} has no metadata.yaml: not a complete ROS 2 bag directory')
 
 
-@contextmanager
-def open_bag(path: Path | str) -> Iterator[Reader]:
+class BagReader(Reader):
+    """A rosbags ``Reader`` that :func:`open_bag` has opened already.
+
+    Use it with ``with`` (closes on exit) or call :meth:`close` yourself.
+    """
+
+    def __enter__(self) -> BagReader:
+        return self
+
+
+def open_bag(path: Path | str) -> BagReader:
     """A ROS 2 bag opened for reading: ``with open_bag(path) as reader: ...``.
 
     Raises:
@@ -213,15 +221,12 @@ def open_bag(path: Path | str) -> Iterator[Reader]:
     """
     path = Path(path)
     _check_bag_path(path)
-    reader = Reader(path)
+    reader = BagReader(path)
     try:
         reader.open()
     except Exception as err:  # rosbags raises its own errors and sqlite/mcap ones
         raise BagError(f'{path}: cannot read the bag ({type(err).__name__}: {err})') from err
-    try:
-        yield reader
-    finally:
-        reader.close()
+    return reader
 
 
 @dataclass(frozen=True, slots=True)

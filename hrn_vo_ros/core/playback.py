@@ -1,0 +1,91 @@
+"""Bag playback timing, free of ROS: when each record is due and when ``/clock`` ticks.
+
+A record with bag time ``t`` is due at wall time (monotonic seconds)
+
+    w(t) = w0 + (t - t0) / (1e9 * rate)
+
+where ``t0`` is the first record's bag time and ``w0`` the wall time playback started; with
+``max_rate`` every record is due at once (the publisher is paced by its subscribers instead).
+``/clock`` carries the bag time of the record about to be published, at most ``clock_hz`` times
+per wall second, never going backwards (for ``use_sim_time`` nodes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hrn_vo_ros.core.configbase import param, validate
+
+
+@dataclass(frozen=True, slots=True)
+class PlaybackConfig:
+    """Options of the bag player (``hrn-vo play`` and the ``bag_player`` node)."""
+
+    bag: str = param('', 'ROS 2 bag directory to play', read_only=True)
+    rate: float = param(1.0, 'Playback speed factor (1 = real time)', lo=1e-3, hi=1e3,
+                        read_only=True)
+    max_rate: bool = param(False, 'Publish as fast as reliable subscribers acknowledge, '
+                           'ignoring the recorded timing', read_only=True)
+    topics: tuple[str, ...] = param((), 'Topics to play (empty: all)', read_only=True)
+    clock: bool = param(False, 'Publish /clock (rosgraph_msgs/Clock) following the bag time',
+                        read_only=True)
+    clock_hz: float = param(100.0, 'Largest /clock rate, per wall second', lo=1.0, hi=10000.0,
+                            read_only=True)
+    wait_for_subscribers: int = param(0, 'Wait until every event topic has this many '
+                                      'subscribers before starting', lo=0, hi=1000,
+                                      read_only=True)
+    wait_timeout_s: float = param(30.0, 'Give up waiting for subscribers after this, seconds',
+                                  lo=0.0, hi=3600.0, read_only=True)
+    ack_timeout_s: float = param(5.0, 'max_rate: longest wait for acknowledgements of one '
+                                 'record, seconds', lo=0.001, hi=600.0, read_only=True)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+class PlaybackSchedule:
+    """Due times of records and ``/clock`` ticks (see the module docstring).
+
+    Args:
+        t0_ns: Bag time of the first record.
+        start_wall_s: Wall time (monotonic seconds) at which that record is due.
+        rate: Speed factor; None for "as fast as possible".
+        clock_hz: Largest ``/clock`` rate per wall second.
+    """
+
+    def __init__(self, t0_ns: int, start_wall_s: float, *, rate: float | None,
+                 clock_hz: float = 100.0) -> None:
+        self.t0_ns = t0_ns
+        self.start_wall_s = start_wall_s
+        self.rate = rate
+        self.clock_period_s = 1.0 / clock_hz
+        self._last_clock_wall = -float('inf')
+        self._last_clock_ns: int | None = None
+
+    def due(self, t_ns: int) -> float:
+        """Wall time at which the record with bag time ``t_ns`` is due."""
+        if self.rate is None:
+            return self.start_wall_s
+        return self.start_wall_s + (t_ns - self.t0_ns) / (1e9 * self.rate)
+
+    def bag_time_at(self, wall_s: float) -> int:
+        """Bag time that corresponds to wall time ``wall_s`` (real-time modes)."""
+        if self.rate is None:
+            return self.t0_ns
+        return self.t0_ns + round((wall_s - self.start_wall_s) * 1e9 * self.rate)
+
+    def clock_tick(self, t_ns: int, wall_s: float, *, force: bool = False) -> int | None:
+        """The ``/clock`` value to publish before a record at ``t_ns`` (None: no tick now).
+
+        Ticks at the first record, then whenever the bag time advanced and a clock period of
+        wall time passed (or ``force``, e.g. for the last record). Never goes backwards.
+        """
+        last = self._last_clock_ns
+        if last is not None and t_ns <= last:
+            return None
+        if last is not None and not force and wall_s - self._last_clock_wall < \
+                self.clock_period_s:
+            return None
+        self._last_clock_ns = t_ns
+        self._last_clock_wall = wall_s
+        return t_ns

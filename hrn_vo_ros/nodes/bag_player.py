@@ -1,0 +1,180 @@
+"""``bag_player``: publishes a ROS 2 bag for machines without ``ros2 bag play``.
+
+Every selected topic is published with its recorded type as raw CDR (no re-serialisation:
+``publish(bytes)``; the message class is imported only for its type support) and with its
+recorded QoS profile (best effort for event packets, transient local for camera info). Timing
+follows the bag (:class:`~hrn_vo_ros.core.playback.PlaybackSchedule`): real time, a ``rate``
+factor, or ``max_rate`` (as fast as reliable subscribers acknowledge). With ``clock`` it
+publishes ``/clock`` for ``use_sim_time`` nodes. It exits when the bag is done and logs the
+messages sent per topic.
+
+    ros2 run hrn_vo_ros bag_player --ros-args -p bag:=shapes_rotation -p rate:=2.0 -p clock:=true
+"""
+
+from __future__ import annotations
+
+from contextlib import ExitStack
+import sys
+import time
+from typing import Any
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+
+from hrn_vo_ros.core.playback import PlaybackConfig, PlaybackSchedule
+from hrn_vo_ros.errors import BagError, HrnVoError
+from hrn_vo_ros.io import bags, ros_msgs
+
+EVENT_TYPES = (bags.EVENT_PACKET, bags.DVS_EVENT_ARRAY)
+LINGER_S = 0.5  # after the last record, so that best-effort samples leave the process
+SETTLE_S = 0.5  # after subscribers matched, so that they have matched the player too
+
+
+def qos_profile(conn: Any, reliable: bool = False) -> QoSProfile:
+    """The rclpy QoS of a recorded topic (events without a record: best effort, depth 1000).
+
+    ``reliable`` forces RELIABLE (max-rate playback: reliable subscribers then pace the player;
+    best-effort subscribers still match a reliable publisher).
+    """
+    recorded = bags.qos_profiles(conn)
+    if not recorded:
+        events = conn.msgtype in EVENT_TYPES
+        return QoSProfile(depth=1000 if events else 10,
+                          reliability=ReliabilityPolicy.BEST_EFFORT if events and not reliable
+                          else ReliabilityPolicy.RELIABLE)
+    q = recorded[0]
+    best_effort = q.reliability.name == 'BEST_EFFORT' and not reliable
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if q.history.name == 'KEEP_ALL'
+        else HistoryPolicy.KEEP_LAST, depth=max(int(q.depth), 1),
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
+        else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if q.durability.name == 'TRANSIENT_LOCAL'
+        else DurabilityPolicy.VOLATILE)
+
+
+class BagPlayer(Node):
+    """Bag → topics (see the module docstring).
+
+    Args:
+        config: Options; None reads them from ROS parameters (the ``bag_player`` executable).
+
+    Raises:
+        BagError: for a missing, unfinished or corrupt bag or topics it does not hold.
+    """
+
+    def __init__(self, config: PlaybackConfig | None = None, **kwargs: Any) -> None:
+        super().__init__('bag_player', **kwargs)
+        if config is None:
+            from hrn_vo_ros.nodes.params import declare_config
+            config = declare_config(self, PlaybackConfig).config
+        if not config.bag:
+            raise BagError('bag_player needs the parameter bag (a ROS 2 bag directory)')
+        self.cfg = config
+        self._stack = ExitStack()
+        try:
+            self._setup(config)
+        except BaseException:
+            self._stack.close()
+            raise
+
+    def _setup(self, config: PlaybackConfig) -> None:
+        self.reader = self._stack.enter_context(bags.open_bag(config.bag))
+        conns = {c.topic: c for c in self.reader.connections}
+        missing = sorted(set(config.topics) - set(conns))
+        if missing:
+            raise BagError(f'{config.bag} has no topic(s) {", ".join(missing)}; it has '
+                           f'{", ".join(sorted(conns))}')
+        self.topics = list(config.topics) or sorted(conns)
+        self.pubs = {t: self.create_publisher(ros_msgs.message_class(conns[t].msgtype), t,
+                                              qos_profile(conns[t], config.max_rate))
+                     for t in self.topics}
+        self.waited_for = [t for t in self.topics if conns[t].msgtype in EVENT_TYPES] \
+            or self.topics
+        self.clock_pub = self.create_publisher(Clock, '/clock', 10) if config.clock else None
+        self.sent = dict.fromkeys(self.topics, 0)
+
+    def wait_for_subscribers(self) -> bool:
+        """Wait until every event topic has ``wait_for_subscribers`` subscribers (or timeout)."""
+        need, deadline = self.cfg.wait_for_subscribers, time.monotonic() + self.cfg.wait_timeout_s
+        while any(self.pubs[t].get_subscription_count() < need for t in self.waited_for):
+            if time.monotonic() > deadline:
+                self.get_logger().warning(f'no {need} subscriber(s) on {self.waited_for} after '
+                                          f'{self.cfg.wait_timeout_s} s: playing anyway')
+                return False
+            time.sleep(0.02)
+        time.sleep(SETTLE_S)
+        return True
+
+    def play(self) -> dict[str, int]:
+        """Publish the whole bag; returns the messages sent per topic."""
+        cfg = self.cfg
+        if cfg.wait_for_subscribers:
+            self.wait_for_subscribers()
+        ack = Duration(seconds=cfg.ack_timeout_s)
+        schedule: PlaybackSchedule | None = None
+        last_t = None
+        for m in bags.iter_messages(self.reader, self.topics):
+            if schedule is None:
+                schedule = PlaybackSchedule(m.t_ns, time.monotonic(),
+                                            rate=None if cfg.max_rate else cfg.rate,
+                                            clock_hz=cfg.clock_hz)
+            delay = schedule.due(m.t_ns) - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            self._tick(schedule, m.t_ns)
+            pub = self.pubs[m.topic]
+            pub.publish(bytes(m.raw))
+            if cfg.max_rate:
+                pub.wait_for_all_acked(ack)
+            self.sent[m.topic] += 1
+            last_t = m.t_ns
+        if schedule is not None and last_t is not None:
+            self._tick(schedule, last_t, force=True)
+        for pub in self.pubs.values():
+            pub.wait_for_all_acked(ack)
+        time.sleep(LINGER_S)
+        self.get_logger().info(f'played {cfg.bag}: {self.sent}')
+        return dict(self.sent)
+
+    def _tick(self, schedule: PlaybackSchedule, t_ns: int, *, force: bool = False) -> None:
+        if self.clock_pub is None:
+            return
+        tick = schedule.clock_tick(t_ns, time.monotonic(), force=force)
+        if tick is not None:
+            msg = Clock()
+            msg.clock.sec, msg.clock.nanosec = divmod(tick, 1_000_000_000)
+            self.clock_pub.publish(msg)
+
+    def destroy_node(self) -> None:
+        """Close the bag with the node."""
+        self._stack.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``bag_player``: play, report, exit (1 on a bag error)."""
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = BagPlayer()
+        node.play()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 130
+    except HrnVoError as err:
+        rclpy.logging.get_logger('bag_player').error(str(err))
+        code = err.exit_code
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,136 @@
+"""Bag player: pure timing, and real playback of a 10 s bag to a separate rclpy subscriber."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hrn_vo_ros.cli.main import main as hrn_vo
+from hrn_vo_ros.core.events import EventArray, EventChecksum
+from hrn_vo_ros.core.playback import PlaybackConfig, PlaybackSchedule
+from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.errors import ConfigError
+from hrn_vo_ros.io import bags, convert, ecd
+
+ROOT = Path(__file__).resolve().parents[1]
+SINK = ROOT / 'test' / 'ros_helpers' / 'event_sink.py'
+
+
+def test_schedule_maps_bag_time_to_wall_time() -> None:
+    s = PlaybackSchedule(5_000_000_000, 100.0, rate=4.0)
+    assert s.due(5_000_000_000) == 100.0
+    assert s.due(9_000_000_000) == pytest.approx(101.0)
+    assert s.bag_time_at(100.5) == 7_000_000_000
+    assert PlaybackSchedule(0, 3.0, rate=None).due(10**12) == 3.0
+
+
+def test_clock_ticks_are_rate_limited_and_monotonic() -> None:
+    s = PlaybackSchedule(0, 0.0, rate=1.0, clock_hz=100.0)
+    assert s.clock_tick(0, 0.0) == 0
+    assert s.clock_tick(1_000_000, 0.001) is None  # within one clock period
+    assert s.clock_tick(20_000_000, 0.02) == 20_000_000
+    assert s.clock_tick(10_000_000, 0.5) is None  # never backwards
+    assert s.clock_tick(20_000_001, 0.0201, force=True) == 20_000_001
+
+
+def test_config_is_validated() -> None:
+    with pytest.raises(ConfigError, match='rate'):
+        PlaybackConfig(rate=0.0)
+
+
+@pytest.fixture(scope='module')
+def ten_second_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object]]:
+    """A 10 s bag: 20 k events/s in 10 ms packets, IMU at 200 Hz, ground truth at 100 Hz."""
+    rng = np.random.default_rng(5)
+    n = 200_000
+    t = np.sort(rng.integers(0, 10 * 10**9, n))
+    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                rng.integers(0, 2, n))
+    ti = np.arange(0, 10 * 10**9, 5_000_000, dtype=np.int64)
+    tg = ti[::2]
+    seq = Sequence(events=ev, calib=CameraCalibration(width=240, height=180, fx=199.0, fy=198.0,
+                                                      cx=120.0, cy=90.0),
+                   imu=ImuData(t=ti, acc=rng.normal(size=(ti.size, 3)),
+                               gyro=rng.normal(size=(ti.size, 3))),
+                   groundtruth=Trajectory(t=tg, pos=rng.normal(size=(tg.size, 3)),
+                                          quat=np.tile([0.0, 0.0, 0.0, 1.0], (tg.size, 1))))
+    tmp = tmp_path_factory.mktemp('player')
+    folder = ecd.write_sequence(tmp / 'seq', seq)
+    stats = convert.convert(folder, tmp / 'bag', packet_duration_ms=10.0)
+    with bags.open_bag(tmp / 'bag') as reader:
+        last_t = reader.end_time - 1  # rosbags' end_time is one past the last record
+    c = EventChecksum()
+    c.update(ev)
+    assert (stats.events, stats.checksum) == (c.count, c.hexdigest())
+    return tmp / 'bag', {'packets': stats.packets, 'events': n, 'checksum': c.hexdigest(),
+                         'last_t': last_t, 'imu': stats.imu}
+
+
+def play_to_sink(player_cmd: list[str], expected_packets: int,
+                 timeout: float) -> tuple[dict[str, object], subprocess.CompletedProcess[str]]:
+    env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get('PYTHONPATH')])])}  # this checkout
+    sink = subprocess.Popen([sys.executable, str(SINK), '/event_camera/events',
+                             str(expected_packets), str(timeout)], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert sink.stdout is not None
+    line = sink.stdout.readline().strip()
+    assert line == 'ready', sink.communicate()[1][-2000:]
+    player = subprocess.run(player_cmd, cwd=ROOT, capture_output=True, text=True,
+                            timeout=timeout + 30, env=env)
+    out, err = sink.communicate(timeout=timeout + 30)
+    assert out.strip(), f'sink printed nothing: {err[-2000:]}'
+    return json.loads(out.strip().splitlines()[-1]), player
+
+
+def check_delivery(got: dict[str, object], want: dict[str, object], rate: float) -> None:
+    assert got['missing'] == []
+    assert (got['packets'], got['events'], got['checksum']) == \
+        (want['packets'], want['events'], want['checksum'])
+    clock = got['clock']
+    assert isinstance(clock, dict) and clock['monotonic'] and clock['last'] == want['last_t']
+    duration = 10.0 / rate
+    assert clock['n'] >= 0.5 * 100 * duration  # ~100 Hz ticks while playing
+    assert got['duration_s'] == pytest.approx(duration, rel=0.25, abs=0.5)
+
+
+@pytest.mark.ros
+def test_cli_plays_every_packet_at_4x_with_clock(
+        ten_second_bag: tuple[Path, dict[str, object]]) -> None:
+    bag, want = ten_second_bag
+    got, player = play_to_sink(
+        [sys.executable, '-m', 'hrn_vo_ros.cli.main', 'play', str(bag), '--rate', '4',
+         '--clock', '--wait-for-subscribers', '1'], int(want['packets']), timeout=60)  # type: ignore[call-overload]
+    assert player.returncode == 0, player.stderr[-2000:]
+    assert f"/event_camera/events {want['packets']}" in player.stdout
+    assert f"/imu {want['imu']}" in player.stdout
+    check_delivery(got, want, 4.0)
+
+
+@pytest.mark.ros
+def test_node_plays_every_packet_in_real_time(
+        ten_second_bag: tuple[Path, dict[str, object]]) -> None:
+    """The one long test: 10 s of playback at 1x through the bag_player executable."""
+    bag, want = ten_second_bag
+    got, player = play_to_sink(
+        [sys.executable, '-m', 'hrn_vo_ros.nodes.bag_player', '--ros-args', '-p',
+         f'bag:={bag}', '-p', 'clock:=true', '-p', 'wait_for_subscribers:=1',
+         '-p', 'topics:=[/event_camera/events, /imu]'],
+        int(want['packets']), timeout=60)  # type: ignore[call-overload]
+    assert player.returncode == 0, player.stderr[-2000:]
+    check_delivery(got, want, 1.0)
+
+
+@pytest.mark.ros
+def test_player_refuses_bad_bags(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / 'x.partial' / 'x').mkdir(parents=True)
+    assert hrn_vo(['play', str(tmp_path / 'x.partial' / 'x')]) == 4
+    assert 'unfinished' in capsys.readouterr().err
+    assert hrn_vo(['play', str(tmp_path / 'missing')]) == 4
+    assert 'does not exist' in capsys.readouterr().err
