@@ -213,3 +213,12 @@ def test_unknown_encoding_while_reading_a_bag(tmp_path: Path) -> None:
     write_bad(tmp_path, 'unknown_encoding')
     with pytest.raises(DecodeError, match='libcaer_cmp'):
         list(bags.iter_bag_events(tmp_path / 'caer'))
+
+
+def test_interrupted_conversion_leaves_nothing(tmp_path: Path) -> None:
+    def interrupt(n: int) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        convert.convert(FIXTURES / 'seq1s', tmp_path / 'out', progress=interrupt)
+    assert list(tmp_path.iterdir()) == []

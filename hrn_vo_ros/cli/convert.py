@@ -10,6 +10,7 @@ run leaves only ``DST.partial``, which no reader accepts.
 from __future__ import annotations
 
 import argparse
+from contextlib import ExitStack
 from pathlib import Path
 
 from hrn_vo_ros.cli.main import echo
@@ -55,12 +56,18 @@ def run(args: argparse.Namespace) -> int:
     """Convert and print a summary line."""
     if args.events_per_packet is not None and args.events_per_packet < 1:
         raise ConfigError(f'--events-per-packet {args.events_per_packet} must be >= 1')
-    with Progress(None, f'converting {args.src.name}', unit='ev') as bar:
+    with ExitStack() as stack:
+        bars: list[Progress] = []
+
+        def on_source(source: convert.Source) -> None:  # after the inputs were checked
+            bars.append(stack.enter_context(
+                Progress(source.total_events, f'converting {args.src.name}', unit='ev')))
+
         stats = convert.convert(
             args.src, args.dst, storage=args.storage, events_per_packet=args.events_per_packet,
             packet_duration_ms=args.packet_duration, frame_id=args.frame_id,
             sensor_size=args.sensor_size, trajectory=args.trajectory, time_unit=args.time_unit,
-            progress=bar.advance, on_source=lambda s: setattr(bar, 'total', s.total_events))
+            progress=lambda n: bars[0].advance(n), on_source=on_source)
     echo(f'wrote {args.dst} ({args.storage}) from {stats.source_kind}: {stats.events} events in '
          f'{stats.packets} packets, {stats.imu} imu, {stats.poses} poses, {stats.camera_info} '
          f'camera_info; {stats.seconds:.1f} s, {stats.events_per_second / 1e6:.2f} M events/s; '
