@@ -119,6 +119,11 @@ class CleanupConfig:
     gamma: float = param(0.5, 'state update speed: x <- (1-gamma) x + gamma C_X(.)', lo=0.0,
                          hi=1.0)
     iterations_per_frame: int = param(1, 'resonator iterations per event frame', lo=1, hi=100)
+    init: str = param('identity', 'initial states: identity (the known transform between the '
+                      'first frame and the map it defines) or random (unit phasors, as the paper)',
+                      choices=('identity', 'random'))
+    whiten: bool = param(False, 'phasor-project each unbinding product before its cleanup, '
+                         'C_X(f(u)) (phase correlation: sharp peaks, few spurious attractors)')
 
     def __post_init__(self) -> None:
         validate(self)
@@ -375,6 +380,8 @@ class _FastEngine:
                       'r': fhrr.random_phasor(g.n_theta, rng)}
         if self.has_z:
             self.state['z'] = fhrr.random_phasor(g.n_rho, rng)
+        if self.cfg.cleanup.init == 'identity':       # seed^0 = 1: zero shift, roll, zoom
+            self.state = {k: np.ones_like(x) for k, x in self.state.items()}
         self.m0 = sfft.fft2(canvas, workers=1)          # m̂(0) = s(0) = Φ I(0)
         self.m = self.m0.copy()
 
@@ -407,14 +414,19 @@ class _FastEngine:
             q *= z.conj()[:, None]
         u = self.send('p', self.lp.reverse(q))      # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
         u *= mc                                     # p̂ ⊙ m̂*
-        a_h = v.conj() @ u                          # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
-        a_v = u @ h.conj()                          # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
         w = self.send('l', self.lp.forward(m * v[:, None] * h[None, :]))  # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
         np.conjugate(w, out=w)
         w *= S                                      # S ⊙ l̂*
-        if z is not None:
-            a_r = z.conj() @ w
-            a_z = w @ r.conj()
+        hb, vb, rb, zb = h, v, r, z
+        if self.cfg.cleanup.whiten:                 # f(a ⊙ b) = f(a) ⊙ f(b): whiten factorwise
+            u, w = fhrr.phasor(u), fhrr.phasor(w)
+            hb, vb, rb = fhrr.phasor(h), fhrr.phasor(v), fhrr.phasor(r)
+            zb = None if z is None else fhrr.phasor(z)
+        a_h = vb.conj() @ u                         # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
+        a_v = u @ hb.conj()                         # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
+        if z is not None and zb is not None:
+            a_r = zb.conj() @ w
+            a_z = w @ rb.conj()
             st['z'] = self.update('z', z, a_z)
         else:
             a_r = w.sum(axis=0)
@@ -520,6 +532,8 @@ class _DenseEngine:
         else:
             n = self.phi_c.shape[0]
             self.state = {k: fhrr.random_phasor(n, rng) for k in self.books}
+        if self.cfg.cleanup.init == 'identity':
+            self.state = {k: np.ones_like(x) for k, x in self.state.items()}
         self.state = {k: x.astype(self.dtype) for k, x in self.state.items()}
         self.m0 = self.phi_c @ canvas.ravel().astype(self.dtype)
         self.m = self.m0.copy()
@@ -538,14 +552,15 @@ class _DenseEngine:
         q = S * r.conj() if z is None else S * r.conj() * z.conj()
         p = self.lam_r @ q                                  # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
         mc = self.m.conj()
-        h_new = (1 - gam) * h + gam * self._clean('h', p * v.conj() * mc)
-        v_new = (1 - gam) * v + gam * self._clean('v', p * h.conj() * mc)
+        wh = fhrr.phasor if self.cfg.cleanup.whiten else (lambda x: x)
+        h_new = (1 - gam) * h + gam * self._clean('h', wh(p * v.conj() * mc))
+        v_new = (1 - gam) * v + gam * self._clean('v', wh(p * h.conj() * mc))
         lv = self.lam @ (self.m * h * v)                    # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
         w = S * lv.conj()
         if z is not None:
-            st['z'] = (1 - gam) * z + gam * self._clean('z', w * r.conj())
+            st['z'] = (1 - gam) * z + gam * self._clean('z', wh(w * r.conj()))
             w = w * z.conj()
-        st['r'] = (1 - gam) * r + gam * self._clean('r', w)
+        st['r'] = (1 - gam) * r + gam * self._clean('r', wh(w))
         st['h'], st['v'] = h_new, v_new
 
     def similarities(self) -> dict[str, Real]:
