@@ -40,7 +40,8 @@ reference ± C_on/off emits an event at the time linearly interpolated between r
 the reference by one threshold. C_on and C_off are drawn once per pixel from N(C, σ)
 (mismatch). Within the refractory period after an event a pixel emits nothing (the crossings
 are consumed, the reference still advances). Renders happen at an adaptive rate so that no image
-point moves more than ``max_px_per_render`` between renders. Background-activity events
+point moves more than ``max_px_per_render`` between renders (twice that for the 640x480 arm
+sensor, which is downsampled by 10 later). Background-activity events
 (Poisson, per pixel) and a few hot pixels are added; timestamps are quantised to 1 µs. Lens
 distortion (radial-tangential, the coefficients written to ``calib.txt``) is applied when
 ``lens_distortion`` > 0.
@@ -231,11 +232,11 @@ class _ArmMotion:
     def __call__(self, t: F64) -> tuple[F64, F64]:
         deg = np.pi / 180.0
         phi = self.phi(t)
-        wob = euler_ptr_to_matrix(0.3 * deg * self.wobble[0](t), 0.3 * deg * self.wobble[1](t),
+        wob = euler_ptr_to_matrix(0.1 * deg * self.wobble[0](t), 0.1 * deg * self.wobble[1](t),
                                   0.0)
         R = rot_z(phi) @ self.R_down @ wob
         c = np.stack([self.radius * np.cos(phi), self.radius * np.sin(phi),
-                      self.height + 0.002 * self.wobble[2](t)], axis=-1)
+                      self.height + 0.001 * self.wobble[2](t)], axis=-1)
         return R, c
 
 
@@ -373,7 +374,7 @@ def table_texture(rng: np.random.Generator, *, x_range: tuple[float, float],
     warp = 0.01 * _smooth_noise(rng, (ny, nx), 0.05 / texel)
     grain = np.sin(2 * np.pi * (X + warp) / rng.uniform(0.006, 0.01))
     rings = np.sin(2 * np.pi * (X + 3 * warp) / 0.045)
-    wood = 0.5 * (1 + 0.12 * grain + 0.18 * rings + 0.05 * _smooth_noise(rng, (ny, nx),
+    wood = 0.5 * (1 + 0.03 * grain + 0.06 * rings + 0.03 * _smooth_noise(rng, (ny, nx),
                                                                            0.002 / texel))
     img[table] = wood[table]
 
@@ -386,8 +387,8 @@ def table_texture(rng: np.random.Generator, *, x_range: tuple[float, float],
 
     # placemat with a check pattern
     pm = (np.abs(X - jitter(0.45)) < 0.16) & (np.abs(Y - jitter(-0.12)) < 0.11)
-    check = ((np.floor(X / 0.02) + np.floor(Y / 0.02)) % 2).astype(np.float64)
-    img[pm] = (0.35 + 0.3 * check)[pm]
+    check = ((np.floor(X / 0.04) + np.floor(Y / 0.04)) % 2).astype(np.float64)
+    img[pm] = (0.45 + 0.15 * check)[pm]
     # plate with a rim, bowl (dark ring, lighter inside), cup with handle
     px, py = jitter(0.45), jitter(-0.12)
     paint(px, py, 'ellipse', 0.11, 0.92, 0.0, 1.0)
@@ -433,6 +434,7 @@ class Scene:
     plane_z: float
     motion: Motion
     gravity: tuple[float, float, float]
+    render_px_scale: float = 1.0
 
 
 def scene_for(kind: str, seed: int, seconds: float,
@@ -468,8 +470,9 @@ def scene_for(kind: str, seed: int, seconds: float,
     calib = CameraCalibration(640, 480, f, f, 319.5, 239.5, (-0.04 * dist, 0.0, 0.0, 0.0, 0.0))
     texture = table_texture(rng, x_range=(-0.25, 1.15), y_range=(-0.75, 0.75), texel=0.0007,
                             blur_m=0.6 * 0.4 / f)
+    # 640x480 is downsampled by 10 for the HRN: renders every 1 px (not 0.5) of motion suffice
     return Scene(kind, calib, texture, 0.0, _ArmMotion(rng, seconds, cfg.speed_scale),
-                 (0.0, 0.0, -GRAVITY))
+                 (0.0, 0.0, -GRAVITY), render_px_scale=2.0)
 
 
 # ------------------------------------------------------------------------------------------
@@ -610,7 +613,8 @@ def _render_times(renderer: _Renderer, seconds: float, cfg: SimulatorConfig) -> 
         seg = tb[i0:i0 + 20001]
         step[i0:i0 + len(seg) - 1] = renderer.motion_px(seg)
     cum = np.concatenate([[0.0], np.cumsum(step)])
-    n_motion = int(math.ceil(cum[-1] / cfg.max_px_per_render))
+    n_motion = int(math.ceil(cum[-1] / (cfg.max_px_per_render
+                                        * renderer.scene.render_px_scale)))
     t_motion = np.interp(np.linspace(0.0, cum[-1], n_motion + 1), cum, tb)
     t_min = np.linspace(0.0, seconds, int(math.ceil(seconds * cfg.min_render_rate_hz)) + 1)
     t = np.unique(np.concatenate([t_motion, t_min]))

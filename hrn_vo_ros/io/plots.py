@@ -82,7 +82,8 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
     top = np.percentile(s.err, 99) if len(s.err) else 1.0
     ax.set_ylim(0, max(top * 1.2, 1e-6))
 
-    top_ax = fig.add_subplot(gs[0:3, 1])
+    right = gs[:, 1].subgridspec(2, 1, height_ratios=(3.0, 1.2), hspace=0.32)
+    top_ax = fig.add_subplot(right[0])
     top_ax.plot(s.gt[:, 0], s.gt[:, 1], color=_GT, lw=1.2, label='ground truth')
     top_ax.plot(s.est[:, 0], s.est[:, 1], color=_EST, lw=0.7, alpha=0.85, label='estimate')
     top_ax.plot(s.gt[0, 0], s.gt[0, 1], 'ko', ms=4, label='start')
@@ -93,7 +94,7 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
     top_ax.legend(fontsize=8, loc='best')
     top_ax.set_title('top view', fontsize=10)
 
-    txt_ax = fig.add_subplot(gs[3, 1])
+    txt_ax = fig.add_subplot(right[1])
     txt_ax.axis('off')
     lines = [f'lag {result.lag_s * 1e3:+.1f} ms, roll corr {result.roll_corr:.3f}',
              f'calibration: {result.calibration.get("segment", "")}']
