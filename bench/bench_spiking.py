@@ -210,9 +210,11 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
              f'Differences are medians over all frames (spiking - float). Loihi figures are '
              f'per resonator iteration (estimates, see core/spiking/accounting.py). CPU float '
              f'HRN per iteration: fast path {ops["fast"] / 1e6:.1f} M flop, dense path '
-             f'{ops["dense"] / 1e6:.0f} M flop.', '',
+             f'{ops["dense"] / 1e6:.0f} M flop. "Core" = bindings, marginals and cleanups; the '
+             f"rest are the dense Λ/Λ' transform layers.", '',
              '| T | weights | \\|d roll\\| deg | \\|d h\\| px | \\|d v\\| px | geodesic deg | '
-             'spikes | synops (M) | energy (µJ) | latency (µs) | emulation frames/s |',
+             'spikes | synops (M): all / resonator core | energy (µJ): all / core | '
+             'latency (µs) | emulation frames/s |',
              '|---|---|---|---|---|---|---|---|---|---|---|']
     for steps in (16, 32, 63):
         for bits in ('float', 4, 6, 8):
@@ -223,8 +225,9 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
             gs = geodesic(gt, t, es)
             label = 'float (timing only)' if bits == 'float' else f'{bits}-bit'
             lines.append(f'| {steps} | {label} | {droll:.2f} | {dh:.2f} | {dv:.2f} | {gs:.2f} | '
-                         f'{acc["spikes"]:.3g} | {acc["synops"] / 1e6:.1f} | '
-                         f'{acc["energy_uJ"]:.0f} | {acc["time_us"]:.0f} | '
+                         f'{acc["spikes"]:.3g} | {acc["synops"] / 1e6:.1f} / '
+                         f'{acc["synops_core"] / 1e6:.2f} | {acc["energy_uJ"]:.0f} / '
+                         f'{acc["energy_core_uJ"]:.1f} | {acc["time_us"]:.0f} | '
                          f'{1.0 / np.median(dts):.0f} |')
             print(lines[-1], flush=True)
     return '\n'.join(lines)

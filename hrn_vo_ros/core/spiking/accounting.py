@@ -33,6 +33,9 @@ import math
 
 from hrn_vo_ros.core.spiking.synapses import LayerCounts
 
+#: Layer names holding this are the dense transform layers (Λ, Λ', Λ Φ) in :meth:`split`.
+TRANSFORM_MARKER = 'Λ'
+
 
 @dataclass(frozen=True, slots=True)
 class LoihiCosts:
@@ -128,9 +131,21 @@ class IterationAccount:
         work = (self.neuron_updates * k.t_neuron + self.synops * k.t_synop) / cores
         return work + self.steps * k.t_sync
 
+    def split(self, marker: str = TRANSFORM_MARKER) -> tuple[IterationAccount, IterationAccount]:
+        """``(transforms, core)``: the layers whose name holds ``marker`` (the dense Λ/Λ' and
+        input layers) and the rest (bindings, marginals, cleanups), as separate accounts."""
+        parts = (IterationAccount(iterations=self.iterations), IterationAccount(
+            iterations=self.iterations))
+        for name, c in self.layers.items():
+            parts[0 if marker in name else 1].add(name, c)
+        return parts
+
     def summary(self, costs: LoihiCosts | None = None) -> dict[str, float]:
-        """Flat numbers for printing and diagnostics."""
-        return {'spikes': float(self.spikes), 'synops': float(self.synops),
+        """Flat numbers for printing and diagnostics (per iteration)."""
+        transforms, core = self.split()
+        return {'synops_core': core.synops, 'energy_core_uJ': core.energy(costs) * 1e6,
+                'energy_transforms_uJ': transforms.energy(costs) * 1e6,
+                'spikes': float(self.spikes), 'synops': float(self.synops),
                 'neuron_updates': float(self.neuron_updates), 'neurons': float(self.neurons),
                 'cores': float(self.cores), 'steps': float(self.steps),
                 'synapses': float(self.synapses),
