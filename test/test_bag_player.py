@@ -72,12 +72,14 @@ def ten_second_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict
                          'last_t': last_t, 'imu': stats.imu}
 
 
-def play_to_sink(player_cmd: list[str], expected_packets: int,
-                 timeout: float) -> tuple[dict[str, object], subprocess.CompletedProcess[str]]:
+def play_to_sink(player_cmd: list[str], expected_packets: int, timeout: float, *,
+                 reliable: bool = False,
+                 ) -> tuple[dict[str, object], subprocess.CompletedProcess[str]]:
     env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get('PYTHONPATH')])])}  # this checkout
     sink = subprocess.Popen([sys.executable, str(SINK), '/event_camera/events',
-                             str(expected_packets), str(timeout)], cwd=ROOT, env=env,
+                             str(expected_packets), str(timeout)] + ['reliable'] * reliable,
+                            cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert sink.stdout is not None
     line = sink.stdout.readline().strip()
@@ -125,6 +127,19 @@ def test_node_plays_every_packet_in_real_time(
         int(want['packets']), timeout=60)  # type: ignore[call-overload]
     assert player.returncode == 0, player.stderr[-2000:]
     check_delivery(got, want, 1.0)
+
+
+@pytest.mark.ros
+def test_max_rate_is_paced_by_a_slow_reliable_subscriber(
+        ten_second_bag: tuple[Path, dict[str, object]]) -> None:
+    bag, want = ten_second_bag
+    got, player = play_to_sink(
+        [sys.executable, '-m', 'hrn_vo_ros.cli.main', 'play', str(bag), '--max-rate',
+         '--topics', '/event_camera/events', '--wait-for-subscribers', '1'],
+        int(want['packets']), timeout=60, reliable=True)  # type: ignore[call-overload]
+    assert player.returncode == 0, player.stderr[-2000:]
+    assert got['missing'] == [] and got['checksum'] == want['checksum']
+    assert 2.0 <= float(got['duration_s']) < 10.0  # type: ignore[arg-type]  # 1000 x >= 2 ms
 
 
 @pytest.mark.ros

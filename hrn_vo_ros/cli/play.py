@@ -1,9 +1,10 @@
 """``hrn-vo play BAG [--rate F | --max-rate] [--topics T ...] [--clock]``: publish a ROS 2 bag.
 
 For machines without ``ros2 bag play``: every topic is published with its recorded type (raw
-CDR) and QoS, in real time, ``--rate`` times faster, or as fast as reliable subscribers keep up
-(``--max-rate``); ``--clock`` adds ``/clock`` for ``use_sim_time`` nodes. Prints the messages
-sent per topic when the bag is done. Same as the ``bag_player`` node.
+CDR) and QoS, in real time, ``--rate`` times faster, or as fast as reliable (KEEP_ALL)
+subscribers keep up (``--max-rate``; best-effort subscribers may then drop messages).
+``--clock`` adds ``/clock`` for ``use_sim_time`` nodes. Prints the messages sent per topic when
+the bag is done. Same as the ``bag_player`` node.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     speed = p.add_mutually_exclusive_group()
     speed.add_argument('--rate', type=float, default=1.0, help='speed factor (default 1)')
     speed.add_argument('--max-rate', action='store_true',
-                       help='as fast as reliable subscribers acknowledge')
+                       help='ignore timing: as fast as reliable KEEP_ALL subscribers keep up')
     p.add_argument('--topics', nargs='+', default=[], metavar='TOPIC',
                    help='only these topics (default all)')
     p.add_argument('--clock', action='store_true', help='publish /clock following the bag')

@@ -5,7 +5,7 @@ A record with bag time ``t`` is due at wall time (monotonic seconds)
     w(t) = w0 + (t - t0) / (1e9 * rate)
 
 where ``t0`` is the first record's bag time and ``w0`` the wall time playback started; with
-``max_rate`` every record is due at once (the publisher is paced by its subscribers instead).
+``max_rate`` every record is due at once (reliable subscribers pace the publisher instead).
 ``/clock`` carries the bag time of the record about to be published, at most ``clock_hz`` times
 per wall second, never going backwards (for ``use_sim_time`` nodes).
 """
@@ -24,8 +24,9 @@ class PlaybackConfig:
     bag: str = param('', 'ROS 2 bag directory to play', read_only=True)
     rate: float = param(1.0, 'Playback speed factor (1 = real time)', lo=1e-3, hi=1e3,
                         read_only=True)
-    max_rate: bool = param(False, 'Publish as fast as reliable subscribers acknowledge, '
-                           'ignoring the recorded timing', read_only=True)
+    max_rate: bool = param(False, 'Ignore the recorded timing: publish as fast as the '
+                           'writers allow (RELIABLE, KEEP_ALL: reliable subscribers pace it)',
+                           read_only=True)
     topics: tuple[str, ...] = param((), 'Topics to play (empty: all)', read_only=True)
     clock: bool = param(False, 'Publish /clock (rosgraph_msgs/Clock) following the bag time',
                         read_only=True)
@@ -36,8 +37,9 @@ class PlaybackConfig:
                                       read_only=True)
     wait_timeout_s: float = param(30.0, 'Give up waiting for subscribers after this, seconds',
                                   lo=0.0, hi=3600.0, read_only=True)
-    ack_timeout_s: float = param(5.0, 'max_rate: longest wait for acknowledgements of one '
-                                 'record, seconds', lo=0.001, hi=600.0, read_only=True)
+    ack_timeout_s: float = param(5.0, 'Longest wait at the end for reliable subscribers to '
+                                 'acknowledge everything, seconds', lo=0.001, hi=600.0,
+                                 read_only=True)
 
     def __post_init__(self) -> None:
         validate(self)

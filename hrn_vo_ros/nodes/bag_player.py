@@ -4,7 +4,8 @@ Every selected topic is published with its recorded type as raw CDR (no re-seria
 ``publish(bytes)``; the message class is imported only for its type support) and with its
 recorded QoS profile (best effort for event packets, transient local for camera info). Timing
 follows the bag (:class:`~hrn_vo_ros.core.playback.PlaybackSchedule`): real time, a ``rate``
-factor, or ``max_rate`` (as fast as reliable subscribers acknowledge). With ``clock`` it
+factor, or ``max_rate`` (no timing; RELIABLE + KEEP_ALL writers, so reliable KEEP_ALL subscribers
+pace the player). With ``clock`` it
 publishes ``/clock`` for ``use_sim_time`` nodes. It exits when the bag is done and logs the
 messages sent per topic.
 
@@ -37,8 +38,9 @@ SETTLE_S = 0.5  # after subscribers matched, so that they have matched the playe
 def qos_profile(conn: Any, reliable: bool = False) -> QoSProfile:
     """The rclpy QoS of a recorded topic (events without a record: best effort, depth 1000).
 
-    ``reliable`` forces RELIABLE (max-rate playback: reliable subscribers then pace the player;
-    best-effort subscribers still match a reliable publisher).
+    ``reliable`` forces RELIABLE and KEEP_ALL (max-rate playback: the writer blocks while its
+    history is full, so KEEP_ALL reliable subscribers pace the player and lose nothing;
+    best-effort subscribers still match a reliable publisher but may drop what they miss).
     """
     recorded = bags.qos_profiles(conn)
     if not recorded:
@@ -49,7 +51,7 @@ def qos_profile(conn: Any, reliable: bool = False) -> QoSProfile:
     q = recorded[0]
     best_effort = q.reliability.name == 'BEST_EFFORT' and not reliable
     return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if q.history.name == 'KEEP_ALL'
+        history=HistoryPolicy.KEEP_ALL if q.history.name == 'KEEP_ALL' or reliable
         else HistoryPolicy.KEEP_LAST, depth=max(int(q.depth), 1),
         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
         else ReliabilityPolicy.RELIABLE,
@@ -129,8 +131,6 @@ class BagPlayer(Node):
             self._tick(schedule, m.t_ns)
             pub = self.pubs[m.topic]
             pub.publish(bytes(m.raw))
-            if cfg.max_rate:
-                pub.wait_for_all_acked(ack)
             self.sent[m.topic] += 1
             last_t = m.t_ns
         if schedule is not None and last_t is not None:

@@ -1,8 +1,9 @@
 """A real rclpy subscriber process for the bag player tests.
 
-Usage: ``event_sink.py TOPIC EXPECTED_PACKETS TIMEOUT_S``. Subscribes ``TOPIC``
-(EventPacket, best effort, depth 1000, like the drivers' consumers) and ``/clock``, decodes every
-packet, and prints one JSON line: packets, events, checksum, seq numbers missing, clock ticks
+Usage: ``event_sink.py TOPIC EXPECTED_PACKETS TIMEOUT_S [reliable]``. Subscribes ``TOPIC``
+(EventPacket, best effort, depth 1000, like the drivers' consumers; ``reliable``: RELIABLE,
+KEEP_ALL and a slow callback, to check that max-rate playback is paced) and ``/clock``, decodes
+every packet, and prints one JSON line: packets, events, checksum, seq numbers missing, clock ticks
 (count, first, last, monotonic). Exits 0 when all expected packets arrived, 1 on timeout.
 """
 
@@ -15,7 +16,7 @@ import time
 from event_camera_msgs.msg import EventPacket
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from hrn_vo_ros.core.events import EventChecksum
@@ -24,6 +25,7 @@ from hrn_vo_ros.io import eventpacket
 
 def main() -> int:
     topic, expected, timeout = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+    reliable = sys.argv[4:] == ['reliable']
     rclpy.init()
     node = Node('event_sink')
     checksum = EventChecksum()
@@ -31,6 +33,8 @@ def main() -> int:
     clock: list[int] = []
 
     def on_packet(msg: EventPacket) -> None:
+        if reliable:
+            time.sleep(0.002)  # slower than the player could publish
         seqs.append(int(msg.seq))
         checksum.update(eventpacket.decode(msg.encoding, bytes(msg.events),
                                            time_base=int(msg.time_base)))
@@ -38,8 +42,10 @@ def main() -> int:
     def on_clock(msg: Clock) -> None:
         clock.append(msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
 
-    node.create_subscription(EventPacket, topic, on_packet,
-                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1,
+                     reliability=ReliabilityPolicy.RELIABLE) if reliable else \
+        QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+    node.create_subscription(EventPacket, topic, on_packet, qos)
     node.create_subscription(Clock, '/clock', on_clock, QoSProfile(depth=1000))
     print('ready', flush=True)  # noqa: T201 (the test reads stdout)
     deadline = time.monotonic() + timeout
