@@ -1,0 +1,252 @@
+"""Accuracy benchmark: HRN vs. the classical baseline on simulated sequences (issue 4 acceptance).
+
+For each kind (rotation, rotation with IMU, translation, arm) and each held-out seed (101, 102,
+103 by default; the HRN was tuned on seeds 1-3), the script
+
+1. simulates a sequence (``hrn-vo simulate`` equivalent, cached in ``--work``/seq),
+2. runs ``hrn-vo run DATASET --config config/<kind>.yaml --out est.csv [--imu]`` (subprocess,
+   the working tree's code) and times it,
+3. runs the classical baseline (:mod:`hrn_vo_ros.core.baseline`) on the same event frames (same
+   packetizer settings from the same YAML file) and writes ``est_baseline.csv``,
+4. evaluates both with ``hrn-vo evaluate ... --json`` (subprocess, the paper's protocol),
+
+then prints one table: median errors per seed and kind, HRN vs. baseline, the issue's targets,
+and the paper's numbers on real data for reference. Everything is measured in the same run.
+
+Examples::
+
+    scripts/run.sh python bench/bench_accuracy.py                         # everything (long)
+    scripts/run.sh python bench/bench_accuracy.py --kinds rotation --seeds 101 --seconds 8
+    scripts/run.sh python bench/bench_accuracy.py --quick                  # 1 seed, 8 s each
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+import json
+import os
+from pathlib import Path
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from hrn_vo_ros.core.baseline import BaselineConfig, PhaseCorrelationBaseline  # noqa: E402
+from hrn_vo_ros.core.evaluation import EstimateSeries  # noqa: E402
+from hrn_vo_ros.core.frames import Packetizer  # noqa: E402
+from hrn_vo_ros.core.simulator import simulate  # noqa: E402
+from hrn_vo_ros.io import ecd  # noqa: E402
+from hrn_vo_ros.io.estimates import write_estimates  # noqa: E402
+from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark kind: simulated scene, config, evaluation protocol, metrics and targets."""
+
+    name: str
+    sim_kind: str
+    config: str
+    eval_kind: str
+    imu: bool
+    metrics: tuple[str, ...]
+    targets: tuple[float, ...]
+    paper: tuple[float | None, ...]
+
+
+CASES = {
+    'rotation': Case('rotation', 'rotation', 'shapes_rotation.yaml', 'rotation', False,
+                     ('median_angle_deg',), (1.5,), (3.5,)),
+    'rotation_imu': Case('rotation_imu', 'rotation', 'shapes_rotation.yaml', 'rotation', True,
+                         ('median_angle_deg',), (1.0,), (2.7,)),
+    'translation': Case('translation', 'translation', 'shapes_translation.yaml', 'translation',
+                        False, ('median_pos_m', 'rel_pos_pct'), (0.02, 2.0), (0.078, 0.53)),
+    'arm': Case('arm', 'arm', 'robot_arm.yaml', 'arm', False,
+                ('median_pos_m', 'median_roll_deg'), (0.02, 2.0), (0.017, 1.5)),
+}
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env['PYTHONPATH'] = str(ROOT) + os.pathsep + env.get('PYTHONPATH', '')
+    return env
+
+
+def _hrn_vo(*args: str) -> subprocess.CompletedProcess[str]:
+    cmd = [sys.executable, '-m', 'hrn_vo_ros.cli.main', *args]
+    res = subprocess.run(cmd, capture_output=True, text=True, env=_env(), check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f'{" ".join(cmd)} failed ({res.returncode}):\n{res.stderr[-2000:]}')
+    return res
+
+
+def sequence(work: Path, kind: str, seconds: float, seed: int) -> Path:
+    """The cached simulated sequence folder (simulated on first use)."""
+    folder = work / 'seq' / f'{kind}_{seconds:g}s_seed{seed}'
+    if not folder.exists():
+        t0 = time.perf_counter()
+        seq = simulate(kind, seconds, seed=seed)
+        ecd.write_sequence(folder, seq)
+        print(f'  simulated {folder.name}: {len(seq.events) / 1e6:.2f} M events in '
+              f'{time.perf_counter() - t0:.1f} s', flush=True)
+    return folder
+
+
+def run_hrn(case: Case, dataset: Path, out: Path) -> float:
+    """``hrn-vo run`` in a subprocess; returns its wall time in seconds."""
+    args = ['run', str(dataset), '--config', str(ROOT / 'config' / case.config), '--out',
+            str(out), '--quiet']
+    if case.imu:
+        args.append('--imu')
+    t0 = time.perf_counter()
+    _hrn_vo(*args)
+    return time.perf_counter() - t0
+
+
+def run_baseline(case: Case, dataset: Path, out: Path) -> float:
+    """The baseline on the same frames as ``hrn-vo run`` (same packetizer settings)."""
+    t0 = time.perf_counter()
+    width, height = ecd.read_sensor_size(dataset)
+    pcfg, rcfg = load_configs(ROOT / 'config' / case.config,
+                              packetizer={'sensor_width': width, 'sensor_height': height},
+                              resonator={})
+    bcfg = BaselineConfig(width=pcfg.width, height=pcfg.height, mu1=rcfg.map.mu1,
+                          mu2=rcfg.map.mu2, block_iterations=rcfg.map.block_iterations,
+                          learn_map=rcfg.map.learn, scale=rcfg.scale.enabled,
+                          max_log_scale=rcfg.scale.max_log_scale)
+    packetizer = Packetizer(pcfg)
+    base = PhaseCorrelationBaseline(bcfg)
+    rows = []
+    for batch in ecd.iter_events(dataset, sensor_size=(width, height)):
+        for frame in packetizer.push(batch):
+            e = base.step(frame.image, frame.t_ns)
+            rows.append((frame.t_ns, e.h, e.v, e.r, e.z))
+    arr = np.array([r[1:] for r in rows], dtype=np.float64)
+    est = EstimateSeries(np.array([r[0] for r in rows], dtype=np.int64), arr[:, 0], arr[:, 1],
+                         arr[:, 2], arr[:, 3] if bcfg.scale else None)
+    write_estimates(out, est)
+    return time.perf_counter() - t0
+
+
+def evaluate(case: Case, dataset: Path, est: Path, plot: Path | None) -> dict[str, object]:
+    """``hrn-vo evaluate --json`` in a subprocess; returns the parsed JSON line."""
+    args = ['evaluate', str(dataset), str(est), '--kind', case.eval_kind, '--json']
+    if plot is not None:
+        args += ['--plot', str(plot)]
+    res = _hrn_vo(*args)
+    result: dict[str, object] = json.loads(res.stdout.strip().splitlines()[-1])
+    return result
+
+
+def _fmt(v: float | None, metric: str) -> str:
+    if v is None or v != v:
+        return '   -   '
+    if metric.endswith('_m'):
+        return f'{100 * v:6.2f}cm'
+    if metric.endswith('_pct'):
+        return f'{v:6.2f}% '
+    return f'{v:6.2f}° '
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; returns 0 (figures are printed, not asserted)."""
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('--work', type=Path, default=ROOT / 'build' / 'bench',
+                   help='cache folder for sequences and estimates (default build/bench)')
+    p.add_argument('--kinds', nargs='+', choices=tuple(CASES), default=list(CASES))
+    p.add_argument('--seeds', nargs='+', type=int, default=[101, 102, 103])
+    p.add_argument('--seconds', type=float, default=20.0)
+    p.add_argument('--no-baseline', action='store_true', help='HRN only')
+    p.add_argument('--no-hrn', action='store_true', help='baseline only')
+    p.add_argument('--plots', action='store_true', help='write trajectory PNGs in --work')
+    p.add_argument('--quick', action='store_true', help='one seed (101), 8 s sequences')
+    args = p.parse_args(argv)
+    if args.quick:
+        args.seeds, args.seconds = args.seeds[:1], 8.0
+    work: Path = args.work
+    work.mkdir(parents=True, exist_ok=True)
+    results: list[tuple[Case, int, str, dict[str, object], float]] = []
+    for name in args.kinds:
+        case = CASES[name]
+        for seed in args.seeds:
+            print(f'{name} seed {seed}:', flush=True)
+            ds = sequence(work, case.sim_kind, args.seconds, seed)
+            methods = [] if args.no_hrn else [('hrn', run_hrn)]
+            if not args.no_baseline:
+                methods.append(('baseline', run_baseline))
+            for method, runner in methods:
+                est = work / 'est' / f'{name}_{args.seconds:g}s_seed{seed}_{method}.csv'
+                est.parent.mkdir(parents=True, exist_ok=True)
+                try:
+                    wall = runner(case, ds, est)
+                    plot = (work / 'plots' / f'{est.stem}.png') if args.plots else None
+                    res = evaluate(case, ds, est, plot)
+                except RuntimeError as err:
+                    print(f'  {method}: FAILED {err}', flush=True)
+                    res, wall = {'metrics': {}, 'warnings': [str(err)[:200]]}, float('nan')
+                metrics = res.get('metrics', {})
+                assert isinstance(metrics, dict)
+                shown = ', '.join(f'{m} {_fmt(metrics.get(m), m).strip()}' for m in case.metrics)
+                print(f'  {method:8s} {shown}  ({wall:.1f} s wall, lag '
+                      f'{1e3 * float(res.get("lag_s", float("nan"))):+.0f} ms)', flush=True)
+                results.append((case, seed, method, res, wall))
+    _table(results, args)
+    return 0
+
+
+def _table(results: list[tuple[Case, int, str, dict[str, object], float]],
+           args: argparse.Namespace) -> None:
+    print()
+    print(f'Accuracy on simulated {args.seconds:g} s sequences (held-out seeds '
+          f'{", ".join(map(str, args.seeds))}); errors on the evaluated part (paper protocol)')
+    head = (f'{"kind":13s} {"seed":>5s} {"metric":17s} {"HRN":>9s} {"baseline":>9s} '
+            f'{"target":>9s} {"paper(real)":>11s}  HRN ok  HRN<base')
+    print(head)
+    print('-' * len(head))
+    kinds = dict.fromkeys(c.name for c, *_ in results)
+    for kind in kinds:
+        case = CASES[kind]
+        seeds = sorted({s for c, s, *_ in results if c.name == kind})
+        for m_i, metric in enumerate(case.metrics):
+            per_method: dict[str, list[float]] = {'hrn': [], 'baseline': []}
+            for seed in seeds:
+                vals = {}
+                for c, s, method, res, _ in results:
+                    if c.name == kind and s == seed:
+                        met = res.get('metrics', {})
+                        assert isinstance(met, dict)
+                        v = met.get(metric)
+                        vals[method] = float(v) if v is not None else float('nan')
+                        per_method[method].append(vals[method])
+                _row(kind, str(seed), metric, vals, case.targets[m_i], case.paper[m_i])
+            med = {m: statistics.median(v) for m, v in per_method.items() if v}
+            _row(kind, 'med', metric, med, case.targets[m_i], case.paper[m_i])
+    print()
+    walls = [(c.name, m, w) for c, _, m, _, w in results if w == w]
+    for kind in kinds:
+        for method in ('hrn', 'baseline'):
+            ws = [w for k, m, w in walls if k == kind and m == method]
+            if ws:
+                print(f'wall time {kind:13s} {method:8s} median {statistics.median(ws):6.1f} s '
+                      f'for {args.seconds:g} s of data')
+
+
+def _row(kind: str, seed: str, metric: str, vals: dict[str, float], target: float,
+         paper: float | None) -> None:
+    h = vals.get('hrn')
+    b = vals.get('baseline')
+    ok = '' if h is None or h != h else ('yes' if h <= target else 'NO')
+    better = '' if h is None or b is None or h != h or b != b else ('yes' if h < b else 'NO')
+    print(f'{kind:13s} {seed:>5s} {metric:17s} {_fmt(h, metric):>9s} {_fmt(b, metric):>9s} '
+          f'{_fmt(target, metric):>9s} {_fmt(paper, metric):>11s}  {ok:6s}  {better}')
+
+
+if __name__ == '__main__':
+    sys.exit(main())
