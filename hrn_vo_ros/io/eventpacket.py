@@ -112,18 +112,24 @@ _KNOWN = frozenset((0, 2, 3, 4, 5, 6, 8)) | _IGNORED
 _ROLLOVER_MIN_BACKSTEP = 10  # a TIME_HIGH going back less than this is jitter, not a rollover
 
 
-def _ffill(mask: NDArray[np.bool_], values: NDArray[np.int64], initial: int,
-           ) -> NDArray[np.int64]:
-    """At every position, ``values`` at the last position where ``mask`` holds (or ``initial``).
+_KNOWN_TABLE = np.zeros(16, bool)
+_KNOWN_TABLE[list(_KNOWN)] = True
+
+
+def _ffill_at(mask: NDArray[np.bool_], values: NDArray[np.int64], initial: int,
+              pos: NDArray[np.intp]) -> NDArray[np.int64]:
+    """At positions ``pos``: the value of the last word at or before it where ``mask`` holds.
+
+    ``values`` holds one value per True of ``mask`` (in order); ``initial`` applies where no
+    such word precedes (the state carried from the previous packet).
 
     Shapes:
-        mask, values: (n,) -> (n,).
+        mask: (n,); values: (mask.sum(),); pos: (m,) -> (m,).
     """
-    n = mask.size
-    idx = np.where(mask, np.arange(n), -1)
-    np.maximum.accumulate(idx, out=idx)
-    out = np.where(idx >= 0, values[np.maximum(idx, 0)], initial)
-    return out.astype(np.int64, copy=False)
+    if values.size == 0:
+        return np.full(pos.size, initial, np.int64)
+    k = np.cumsum(mask)[pos] - 1
+    return np.where(k >= 0, values[np.maximum(k, 0)], initial).astype(np.int64, copy=False)
 
 
 @dataclass(slots=True)
@@ -158,7 +164,7 @@ class Evt3Decoder:
                               '16-bit words')
         w = buf.view('>u2' if is_bigendian else '<u2').astype(np.int64)
         code = w >> 12
-        bad = ~np.isin(code, list(_KNOWN))
+        bad = ~_KNOWN_TABLE[code]
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise DecodeError(f'evt3 word {i} has unknown type {int(code[i])} '
@@ -171,48 +177,48 @@ class Evt3Decoder:
             start = self._find_valid_time(w, code)
             code[:start] = np.where(np.isin(code[:start], (_TIME_LOW, _TIME_HIGH)),
                                     code[:start], 7)
-        payload12 = w & 0xFFF
 
-        # time: high word with rollovers, forward-filled; low word forward-filled
+        # words that carry events (ADDR_X: one at bit 0; vectors: their masks), plus the last
+        # word, at which the state for the next packet is read
+        is_x = code == _ADDR_X
+        is_v12, is_v8 = code == _VECT_12, code == _VECT_8
+        rows = np.flatnonzero(is_x | is_v12 | is_v8)
+        pos = np.append(rows, n - 1)
+
+        # time: TIME_HIGH with rollovers and TIME_LOW, each the last one before the word
         is_high = code == _TIME_HIGH
-        highs = payload12[is_high]
+        highs = w[is_high] & 0xFFF
         if highs.size:
             prev = np.concatenate(([(self.time_high >> 12) & 0xFFF], highs[:-1]))
             roll = (highs < prev) & (prev - highs > _ROLLOVER_MIN_BACKSTEP)
             base = (self.time_high >> 24) << 24
-            high_full = base + (np.cumsum(roll) << 24) + (highs << 12)
-            high_at = np.full(n, 0, np.int64)
-            high_at[is_high] = high_full
-            high_t = _ffill(is_high, high_at, self.time_high)
-        else:
-            high_t = np.full(n, self.time_high, np.int64)
+            highs = base + (np.cumsum(roll) << 24) + (highs << 12)
+        high_t = _ffill_at(is_high, highs, self.time_high, pos)
         is_low = code == _TIME_LOW
-        low_t = _ffill(is_low, payload12, self.time_low)
-        y_at = _ffill(code == _ADDR_Y, w & 0x7FF, self.y)
+        low_t = _ffill_at(is_low, w[is_low] & 0xFFF, self.time_low, pos)
+        is_y = code == _ADDR_Y
+        y_at = _ffill_at(is_y, w[is_y] & 0x7FF, self.y, pos)
 
-        # vectors: base x and polarity from VECT_BASE_X, advanced by each VECT_12/VECT_8
+        # vectors: base x and polarity from VECT_BASE_X, advanced by each VECT_12 / VECT_8
         is_base = code == _VECT_BASE_X
-        step = np.where(code == _VECT_12, 12, np.where(code == _VECT_8, 8, 0))
+        step = np.where(is_v12, 12, 0) + np.where(is_v8, 8, 0)
         before = np.cumsum(step) - step  # advance of base x since the packet start
-        base_val = _ffill(is_base, (w & 0x7FF) - before, self.base_x)
-        base_x = base_val + before
-        pol_v = _ffill(is_base, (w >> 11) & 1, self.polarity)
+        base_x = _ffill_at(is_base, (w[is_base] & 0x7FF) - before[is_base], self.base_x,
+                           pos) + before[pos]
+        pol_v = _ffill_at(is_base, (w[is_base] >> 11) & 1, self.polarity, pos)
 
-        # one row per event word: ADDR_X (bit 0 set) or vector masks
-        is_x = code == _ADDR_X
-        is_vec = step > 0
-        rows = np.flatnonzero(is_x | is_vec)
-        masks = np.where(is_x[rows], 1, np.where(code[rows] == _VECT_12, w[rows] & 0xFFF,
-                                                 w[rows] & 0xFF))
-        bits = (masks[:, None] >> np.arange(12)) & 1
-        r, col = np.nonzero(bits)
-        words = rows[r]
-        x = np.where(is_x[words], w[words] & 0x7FF, base_x[words] + col)
-        p = np.where(is_x[words], (w[words] >> 11) & 1, pol_v[words])
-        y = y_at[words]
-        t = (high_t[words] | low_t[words]) * 1000
+        # expand: one event per set mask bit, in stream order (word, then bit)
+        wr = w[rows]
+        xr = is_x[rows]
+        masks = np.where(xr, 1, np.where(is_v12[rows], wr & 0xFFF, wr & 0xFF))
+        r, col = np.nonzero((masks[:, None] >> np.arange(12)) & 1)
+        xr_r = xr[r]
+        x = np.where(xr_r, wr[r] & 0x7FF, base_x[r] + col)
+        p = np.where(xr_r, (wr[r] >> 11) & 1, pol_v[r])
+        y = y_at[r]
+        t = (high_t[r] | low_t[r]) * 1000
 
-        # state for the next packet
+        # state for the next packet (the last entry of pos is the last word)
         self.time_high = int(high_t[-1])
         self.time_low = int(low_t[-1])
         self.y = int(y_at[-1])
