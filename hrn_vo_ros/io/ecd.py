@@ -382,7 +382,8 @@ def _parse_fast(buf: bytes, n: int) -> tuple[_I64, _I64, _I64, _I64] | None:
     wsec, wx, wy = dots - starts, s3[:, 1] - s3[:, 0] - 1, s3[:, 2] - s3[:, 1] - 1
     layout_ok = bool(np.all((wsec >= 1) & (wsec <= 8) & (s3[:, 0] - dots == w + 1)
                             & (wx >= 1) & (wx <= 5) & (wy >= 1) & (wy <= 5)
-                            & (nl - s3[:, 2] == 2)))
+                            & ((nl - s3[:, 2] == 2)
+                               | ((nl - s3[:, 2] == 3) & (arr[nl - 1] == 13)))))  # LF or CRLF
     if not layout_ok:
         return None
     sec, bad = _swar_digits(u64, dots, wsec)
