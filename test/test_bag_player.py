@@ -143,6 +143,37 @@ def test_max_rate_is_paced_by_a_slow_reliable_subscriber(
 
 
 @pytest.mark.ros
+def test_recorded_qos_and_overrides(ten_second_bag: tuple[Path, dict[str, object]]) -> None:
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+
+    from hrn_vo_ros.nodes.bag_player import qos_profile
+
+    with bags.open_bag(ten_second_bag[0]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+    events = qos_profile(conns['/event_camera/events'])
+    assert (events.reliability, events.history, events.depth) == \
+        (ReliabilityPolicy.BEST_EFFORT, HistoryPolicy.KEEP_LAST, 1000)
+    info = qos_profile(conns['/event_camera/camera_info'])
+    assert (info.reliability, info.durability) == (ReliabilityPolicy.RELIABLE,
+                                                   DurabilityPolicy.TRANSIENT_LOCAL)
+    forced = qos_profile(conns['/event_camera/events'], reliable=True, keep_all=True)
+    assert (forced.reliability, forced.history) == (ReliabilityPolicy.RELIABLE,
+                                                    HistoryPolicy.KEEP_ALL)
+
+
+@pytest.mark.ros
+def test_reliable_option_reaches_reliable_subscribers(
+        ten_second_bag: tuple[Path, dict[str, object]]) -> None:
+    bag, want = ten_second_bag
+    got, player = play_to_sink(
+        [sys.executable, '-m', 'hrn_vo_ros.cli.main', 'play', str(bag), '--rate', '20',
+         '--reliable', '--topics', '/event_camera/events', '--wait-for-subscribers', '1'],
+        int(want['packets']), timeout=60, reliable=True)  # type: ignore[call-overload]
+    assert player.returncode == 0, player.stderr[-2000:]
+    assert got['missing'] == [] and got['checksum'] == want['checksum']
+
+
+@pytest.mark.ros
 def test_player_refuses_bad_bags(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / 'x.partial' / 'x').mkdir(parents=True)
     assert hrn_vo(['play', str(tmp_path / 'x.partial' / 'x')]) == 4

@@ -26,6 +26,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     speed.add_argument('--rate', type=float, default=1.0, help='speed factor (default 1)')
     speed.add_argument('--max-rate', action='store_true',
                        help='ignore timing: as fast as reliable KEEP_ALL subscribers keep up')
+    p.add_argument('--reliable', action='store_true',
+                   help='publish every topic RELIABLE (lossless replay into reliable '
+                   'subscribers; recorded best-effort topics do not match them otherwise)')
     p.add_argument('--topics', nargs='+', default=[], metavar='TOPIC',
                    help='only these topics (default all)')
     p.add_argument('--clock', action='store_true', help='publish /clock following the bag')
@@ -40,6 +43,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace) -> int:
     """Play the bag, then print the messages sent per topic."""
     cfg = PlaybackConfig(bag=str(args.bag), rate=args.rate, max_rate=args.max_rate,
+                         reliable=args.reliable,
                          topics=tuple(args.topics), clock=args.clock, clock_hz=args.clock_hz,
                          wait_for_subscribers=args.wait_for_subscribers,
                          wait_timeout_s=args.wait_timeout)

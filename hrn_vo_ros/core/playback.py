@@ -27,6 +27,8 @@ class PlaybackConfig:
     max_rate: bool = param(False, 'Ignore the recorded timing: publish as fast as the '
                            'writers allow (RELIABLE, KEEP_ALL: reliable subscribers pace it)',
                            read_only=True)
+    reliable: bool = param(False, 'Publish every topic RELIABLE (recorded best-effort topics '
+                           'do not match reliable subscribers otherwise)', read_only=True)
     topics: tuple[str, ...] = param((), 'Topics to play (empty: all)', read_only=True)
     clock: bool = param(False, 'Publish /clock (rosgraph_msgs/Clock) following the bag time',
                         read_only=True)

@@ -2,7 +2,8 @@
 
 Every selected topic is published with its recorded type as raw CDR (no re-serialisation:
 ``publish(bytes)``; the message class is imported only for its type support) and with its
-recorded QoS profile (best effort for event packets, transient local for camera info). Timing
+recorded QoS profile (best effort for event packets, transient local for camera info; with
+``reliable`` every topic is RELIABLE, for lossless replay into reliable subscribers). Timing
 follows the bag (:class:`~hrn_vo_ros.core.playback.PlaybackSchedule`): real time, a ``rate``
 factor, or ``max_rate`` (no timing; RELIABLE + KEEP_ALL writers, so reliable KEEP_ALL subscribers
 pace the player). With ``clock`` it
@@ -35,28 +36,27 @@ LINGER_S = 0.5  # after the last record, so that best-effort samples leave the p
 SETTLE_S = 0.5  # after subscribers matched, so that they have matched the player too
 
 
-def qos_profile(conn: Any, reliable: bool = False) -> QoSProfile:
+def qos_profile(conn: Any, *, reliable: bool = False, keep_all: bool = False) -> QoSProfile:
     """The rclpy QoS of a recorded topic (events without a record: best effort, depth 1000).
 
-    ``reliable`` forces RELIABLE and KEEP_ALL (max-rate playback: the writer blocks while its
-    history is full, so KEEP_ALL reliable subscribers pace the player and lose nothing;
-    best-effort subscribers still match a reliable publisher but may drop what they miss).
+    Args:
+        conn: The bag connection (topic, type, recorded QoS profiles).
+        reliable: Force RELIABLE, so that reliable subscribers match (a best-effort writer does
+            not match them); best-effort subscribers still match a reliable writer.
+        keep_all: Force KEEP_ALL (max-rate playback: the writer blocks while its history is
+            full, so KEEP_ALL reliable subscribers pace the player and lose nothing).
     """
     recorded = bags.qos_profiles(conn)
-    if not recorded:
-        events = conn.msgtype in EVENT_TYPES
-        return QoSProfile(depth=1000 if events else 10,
-                          reliability=ReliabilityPolicy.BEST_EFFORT if events and not reliable
-                          else ReliabilityPolicy.RELIABLE)
-    q = recorded[0]
-    best_effort = q.reliability.name == 'BEST_EFFORT' and not reliable
+    events = conn.msgtype in EVENT_TYPES
+    best_effort = (recorded[0].reliability.name == 'BEST_EFFORT' if recorded else events)
+    depth = max(int(recorded[0].depth), 1) if recorded else (1000 if events else 10)
+    history_all = keep_all or bool(recorded and recorded[0].history.name == 'KEEP_ALL')
+    latched = bool(recorded and recorded[0].durability.name == 'TRANSIENT_LOCAL')
     return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if q.history.name == 'KEEP_ALL' or reliable
-        else HistoryPolicy.KEEP_LAST, depth=max(int(q.depth), 1),
-        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
+        history=HistoryPolicy.KEEP_ALL if history_all else HistoryPolicy.KEEP_LAST, depth=depth,
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort and not reliable
         else ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if q.durability.name == 'TRANSIENT_LOCAL'
-        else DurabilityPolicy.VOLATILE)
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
 class BagPlayer(Node):
@@ -93,7 +93,9 @@ class BagPlayer(Node):
                            f'{", ".join(sorted(conns))}')
         self.topics = list(config.topics) or sorted(conns)
         self.pubs = {t: self.create_publisher(ros_msgs.message_class(conns[t].msgtype), t,
-                                              qos_profile(conns[t], config.max_rate))
+                                              qos_profile(conns[t], keep_all=config.max_rate,
+                                                          reliable=config.reliable
+                                                          or config.max_rate))
                      for t in self.topics}
         self.waited_for = [t for t in self.topics if conns[t].msgtype in EVENT_TYPES] \
             or self.topics
