@@ -116,8 +116,10 @@ class SimulatorConfig:
                              hi=100.0)
     acc_bias: float = param(0.05, 'std of the constant accelerometer bias per axis, m/s^2',
                             lo=0.0, hi=100.0)
-    render_batch: int = param(48, 'renders computed together (memory vs. speed)', lo=1,
-                              hi=4096)
+    render_batch: int = param(48, 'renders computed together at most (memory vs. speed)',
+                              lo=1, hi=4096)
+    render_pixels: int = param(1_000_000, 'pixels per render batch at most (cache size)',
+                               lo=1, hi=1_000_000_000)
 
     def __post_init__(self) -> None:
         validate(self)
@@ -748,7 +750,7 @@ def simulate(kind: str, seconds: float, *, seed: int, config: SimulatorConfig | 
     parts_t: list[NDArray[np.int64]] = []
     parts_pix: list[NDArray[np.intp]] = []
     parts_p: list[NDArray[np.bool_]] = []
-    B = cfg.render_batch
+    B = max(1, min(cfg.render_batch, cfg.render_pixels // n_pix))
     done = 0.0
     for b0 in range(1, len(times), B):
         tb = times[b0:b0 + B]
