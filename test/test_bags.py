@@ -88,3 +88,32 @@ def test_readers_refuse_partial_missing_and_corrupt_bags(tmp_path: Path) -> None
     mcap.write_bytes(data[:len(data) // 2])
     with pytest.raises(BagError), bags.open_bag(dst) as reader:
         list(bags.iter_messages(reader))
+
+
+@pytest.mark.parametrize('frame_id', ['', 'imu', 'world', 'a_longer_frame'])
+def test_batch_imu_and_pose_cdr_are_byte_identical_to_rosbags(
+        frame_id: str, rng: np.random.Generator) -> None:
+    ts = bags.typestore()
+    T = ts.types
+    t = np.array([0, 1_500_000_001, 2**40 + 7])
+    acc, gyro = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+    pos, quat = rng.normal(size=(3, 3)), rng.normal(size=(3, 4))
+    imu = bags.imu_cdr_batch(t, acc, gyro, frame_id=frame_id)
+    poses = bags.pose_cdr_batch(t, pos, quat, frame_id=frame_id)
+    q_cov = np.zeros(9)
+    q_cov[0] = -1.0
+    for i in range(3):
+        header = T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
+            sec=int(t[i]) // 10**9, nanosec=int(t[i]) % 10**9), frame_id=frame_id)
+        V = T['geometry_msgs/msg/Vector3']
+        msg = T['sensor_msgs/msg/Imu'](
+            header=header, orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0,
+                                                                         w=1.0),
+            orientation_covariance=q_cov, angular_velocity=V(*gyro[i]),
+            angular_velocity_covariance=np.zeros(9), linear_acceleration=V(*acc[i]),
+            linear_acceleration_covariance=np.zeros(9))
+        assert imu[i] == bytes(ts.serialize_cdr(msg, 'sensor_msgs/msg/Imu'))
+        pose = T['geometry_msgs/msg/PoseStamped'](header=header, pose=T['geometry_msgs/msg/Pose'](
+            position=T['geometry_msgs/msg/Point'](*pos[i]),
+            orientation=T['geometry_msgs/msg/Quaternion'](*quat[i])))
+        assert poses[i] == bytes(ts.serialize_cdr(pose, 'geometry_msgs/msg/PoseStamped'))

@@ -38,6 +38,18 @@ def test_mono_round_trip_and_layout(rng: np.random.Generator) -> None:
     assert same(eventpacket.decode('mono', payload.tobytes(), time_base=time_base), ev)
 
 
+def test_mono_packets_at_once_equal_one_by_one(rng: np.random.Generator) -> None:
+    ev = random_events(rng, 1000, width=65535, height=32767)
+    bounds = np.array([0, 1, 400, 401, 999, 1000])
+    time_bases, payload = eventpacket.encode_mono_packets(ev, bounds)
+    for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        time_base, one = eventpacket.encode_mono(ev[a:b])
+        assert time_bases[i] == time_base
+        assert payload[8 * a:8 * b].tobytes() == one.tobytes()
+    with pytest.raises(DecodeError, match='at least one event'):
+        eventpacket.encode_mono_packets(ev, np.array([0, 5, 5, 1000]))
+
+
 def test_mono_rejects_long_packets_and_bad_payloads(rng: np.random.Generator) -> None:
     ev = EventArray.from_arrays(np.array([0, 2**32]), np.zeros(2), np.zeros(2), np.zeros(2))
     with pytest.raises(DecodeError, match='4.29 s'):

@@ -35,6 +35,7 @@ import time
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from rosbags.interfaces import Qos
 from rosbags.typesys.store import Typestore
 
@@ -231,8 +232,17 @@ class PacketSplitter:
 
     def push(self, ev: EventArray) -> list[EventArray]:
         """The packets completed by ``ev`` (the last, possibly open one is held back)."""
+        buf, bounds = self.push_bounds(ev)
+        return [buf[int(a):int(b)] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+
+    def push_bounds(self, ev: EventArray) -> tuple[EventArray, NDArray[np.int64]]:
+        """Like :meth:`push`, as one array and packet bounds (packet i = ``buf[b[i]:b[i+1]]``).
+
+        Shapes:
+            bounds: (k + 1,) for k complete packets (``[0]`` when none).
+        """
         if len(ev) == 0:
-            return []
+            return EventArray.empty(), np.zeros(1, np.int64)
         if self.t0 is None:
             self.t0 = int(ev.t[0])
         buf = EventArray.concatenate([self.pending, ev]) if len(self.pending) else ev
@@ -249,12 +259,11 @@ class PacketSplitter:
         cuts = np.flatnonzero(cut) + 1
         if n is not None and (self.emitted + len(buf)) % n == 0:
             cuts = np.append(cuts, len(buf))  # a count-mode packet of n events is complete
-        bounds = np.concatenate(([0], cuts))
-        packets = [buf[int(a):int(b)] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        bounds = np.concatenate(([0], cuts)).astype(np.int64)
         end = int(bounds[-1])
         self.pending = buf[end:]
         self.emitted += end
-        return [p for p in packets if len(p)]
+        return buf[:end], bounds
 
     def flush(self) -> list[EventArray]:
         """The last, open packet (if any)."""
@@ -346,16 +355,20 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
                 writer.write(conns[topic], t, raw)
                 k += 1
 
-        def write_packets(packets: list[EventArray]) -> None:
+        def write_packets(buf: EventArray, bounds: NDArray[np.int64]) -> None:
             nonlocal n_packets
-            for packet in packets:
-                time_base, payload = eventpacket.encode_mono(packet)
-                t_pub = int(packet.t[-1])
+            if len(bounds) < 2:
+                return
+            time_bases, payload = eventpacket.encode_mono_packets(buf, bounds)
+            ends = buf.t[bounds[1:] - 1].tolist()
+            for i, (a, b) in enumerate(zip((8 * bounds[:-1]).tolist(),
+                                           (8 * bounds[1:]).tolist(), strict=True)):
+                time_base, t_pub = int(time_bases[i]), ends[i]
                 flush_side(t_pub)
                 raw = bags.event_packet_cdr(
                     stamp_ns=time_base, frame_id=frame_id, height=source.height,
                     width=source.width, seq=n_packets, time_base=time_base, encoding='mono',
-                    is_bigendian=False, payload=payload)
+                    is_bigendian=False, payload=payload[a:b])
                 writer.write(conns[EVENTS_TOPIC], t_pub, raw)
                 n_packets += 1
 
@@ -366,10 +379,11 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
             if first_t is None:
                 first_t = int(ev.t[0])
             last_t = int(ev.t[-1])
-            write_packets(splitter.push(ev))
+            write_packets(*splitter.push_bounds(ev))
             if progress is not None:
                 progress(len(ev))
-        write_packets(splitter.flush())
+        for last in splitter.flush():
+            write_packets(last, np.array([0, len(last)], np.int64))
         flush_side(None)
         counts = dict(writer.counts)
     return ConversionStats(events=checksum.count, packets=n_packets, imu=counts.get(IMU_TOPIC, 0),
@@ -402,29 +416,13 @@ def _side_messages(source: Source, ts: Typestore, frame_id: str, t_start: int | 
 
     out: list[tuple[int, str, bytes]] = []
     if source.imu is not None:
-        V = T['geometry_msgs/msg/Vector3']
-        no_orientation = np.zeros(9)
-        no_orientation[0] = -1.0  # REP 145: orientation not provided
-        zeros = np.zeros(9)
         imu = source.imu
-        for t, a, g in zip(imu.t.tolist(), imu.acc.tolist(), imu.gyro.tolist(), strict=True):
-            m = T['sensor_msgs/msg/Imu'](
-                header=header(t, 'imu'),
-                orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0),
-                orientation_covariance=no_orientation, angular_velocity=V(*g),
-                angular_velocity_covariance=zeros, linear_acceleration=V(*a),
-                linear_acceleration_covariance=zeros)
-            out.append((t, IMU_TOPIC, bytes(ts.serialize_cdr(m, 'sensor_msgs/msg/Imu'))))
+        raws = bags.imu_cdr_batch(imu.t, imu.acc, imu.gyro, frame_id='imu')
+        out += [(t, IMU_TOPIC, raw) for t, raw in zip(imu.t.tolist(), raws, strict=True)]
     if source.groundtruth is not None:
         gt = source.groundtruth
-        for t, p, q in zip(gt.t.tolist(), gt.pos.tolist(), gt.quat.tolist(), strict=True):
-            m = T['geometry_msgs/msg/PoseStamped'](
-                header=header(t, 'world'),
-                pose=T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](*p),
-                                                 orientation=T['geometry_msgs/msg/Quaternion'](
-                                                     *q)))
-            out.append((t, POSE_TOPIC,
-                        bytes(ts.serialize_cdr(m, 'geometry_msgs/msg/PoseStamped'))))
+        raws = bags.pose_cdr_batch(gt.t, gt.pos, gt.quat, frame_id='world')
+        out += [(t, POSE_TOPIC, raw) for t, raw in zip(gt.t.tolist(), raws, strict=True)]
     if source.calib is not None:
         c = source.calib
         starts = [t for t, _, _ in out[:1]] + ([] if t_start is None else [t_start])

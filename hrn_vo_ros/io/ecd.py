@@ -44,6 +44,7 @@ from pathlib import Path
 import shutil
 import tempfile
 from typing import IO
+import warnings
 import zipfile
 
 import numpy as np
@@ -467,6 +468,9 @@ def _read_table(src: _Source, name: str, columns: str,
     where = src.where(name)
     ncol = len(columns.split())
     text = src.read_text(name)
+    fast = _table_fast(text, ncol)
+    if fast is not None:
+        return fast
     lines = text.split('\n')
     ts: list[int] = []
     rows: list[list[float]] = []
@@ -495,6 +499,30 @@ def _read_table(src: _Source, name: str, columns: str,
     t_arr = np.array(ts, dtype=np.int64)
     v_arr = np.array(rows, dtype=np.float64).reshape(len(rows), ncol - 1)
     return t_arr, v_arr
+
+
+def _table_fast(text: str, ncol: int,
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
+    """Whole-table parse (numpy for the values, exact integer times), or None when anything is
+    unusual (comments, blank lines, a bad value), so that the per-line parser names the line."""
+    lines = text.splitlines()
+    if not lines or '#' in text or not all(lines):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        try:
+            vals = np.fromstring(text, dtype=np.float64, sep=' ')
+        except (DeprecationWarning, ValueError):
+            return None
+    if vals.size != len(lines) * ncol or not np.all(np.isfinite(vals)):
+        return None
+    try:
+        t = np.array([_time_ns(line.split(None, 1)[0]) for line in lines], np.int64)
+    except ValueError:
+        return None
+    if np.any(t[1:] < t[:-1]):
+        return None
+    return t, np.ascontiguousarray(vals.reshape(len(lines), ncol)[:, 1:])
 
 
 def _check_count(src: _Source, name: str, key: str, n: int) -> None:

@@ -19,11 +19,11 @@ Layouts (``docs/ros_notes.md`` §1, following ros-event-camera/event_camera_code
   are packed 13-byte records ``x u2, y u2, sec u4, nsec u4, polarity u1``), :func:`decode_dvs_cdr`
   ROS 2 CDR ones (16-byte aligned records after the first 14-byte one).
 
-Public API: :func:`encode_mono`, :func:`decode_mono`, :class:`Evt3Decoder`, :func:`encode_evt3`
-(for tests and benchmarks), :func:`decode` (stateless dispatch on the encoding name),
-:class:`PacketDecoder` (stateful dispatch, one per subscribed topic), :func:`decode_dvs_ros1`,
-:func:`decode_dvs_cdr`. An unknown encoding or a corrupt payload raises
-:class:`~hrn_vo_ros.errors.DecodeError`.
+Public API: :func:`encode_mono`, :func:`encode_mono_packets`, :func:`decode_mono`,
+:class:`Evt3Decoder`, :func:`encode_evt3` (for tests and benchmarks), :func:`decode`
+(stateless dispatch on the encoding name), :class:`PacketDecoder` (stateful dispatch, one per
+subscribed topic), :func:`decode_dvs_ros1`, :func:`decode_dvs_cdr`. An unknown encoding or a
+corrupt payload raises :class:`~hrn_vo_ros.errors.DecodeError`.
 """
 
 from __future__ import annotations
@@ -81,6 +81,36 @@ def encode_mono(ev: EventArray, *, time_base: int | None = None) -> tuple[int, _
              | (ev.y.astype(np.uint64) << np.uint64(48))
              | (ev.p.astype(np.uint64) << np.uint64(63)))
     return time_base, words.astype('<u8', copy=False).view(np.uint8)
+
+
+def encode_mono_packets(ev: EventArray, bounds: NDArray[np.int64],
+                        ) -> tuple[NDArray[np.int64], _U8]:
+    """Encode many ``mono`` packets at once: packet i holds ``ev[bounds[i]:bounds[i + 1]]``.
+
+    Each packet's ``time_base`` is its first event's time; its payload is
+    ``payload[8 * bounds[i]:8 * bounds[i + 1]]``. Same words as :func:`encode_mono`.
+
+    Raises:
+        DecodeError: as :func:`encode_mono` (a packet spanning more than 2^32 - 1 ns, ...).
+
+    Shapes:
+        bounds: (k + 1,) increasing, from 0 to len(ev); returns time_bases (k,) and
+        payload (8 len(ev),) uint8.
+    """
+    sizes = np.diff(bounds)
+    if np.any(sizes <= 0):
+        raise DecodeError('mono packets must hold at least one event each')
+    time_bases = ev.t[bounds[:-1]]
+    dt = ev.t - np.repeat(time_bases, sizes)
+    if len(ev) and (int(dt.min()) < 0 or int(dt.max()) > MONO_MAX_DT):
+        raise DecodeError(f'a mono packet spans more than {MONO_MAX_DT} ns (4.29 s) or is not '
+                          'sorted by time: use shorter packets')
+    if len(ev) and (int(ev.y.max()) >= 1 << 15 or int(ev.p.max()) > 1):
+        raise DecodeError('mono words hold y < 32768 and polarity 0/1')
+    words = (dt.astype(np.uint64) | (ev.x.astype(np.uint64) << np.uint64(32))
+             | (ev.y.astype(np.uint64) << np.uint64(48))
+             | (ev.p.astype(np.uint64) << np.uint64(63)))
+    return time_bases, words.astype('<u8', copy=False).view(np.uint8)
 
 
 def decode_mono(payload: bytes | _U8, *, time_base: int, is_bigendian: bool = False,
