@@ -216,20 +216,27 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
              'spikes | synops (M): all / resonator core | energy (µJ): all / core | '
              'latency (µs) | emulation frames/s |',
              '|---|---|---|---|---|---|---|---|---|---|---|']
+    variants: list[tuple[str, SpikingConfig]] = []
     for steps in (16, 32, 63):
-        for bits in ('float', 4, 6, 8):
-            sc = (SpikingConfig(precision='float', steps_per_cycle=steps) if bits == 'float'
-                  else SpikingConfig(steps_per_cycle=steps, weight_bits=int(bits)))
-            es, dts, acc = run(cfg, BackendConfig('spiking', sc), t, imgs, seed)
-            droll, dh, dv = differences(es, ef)
-            gs = geodesic(gt, t, es)
-            label = 'float (timing only)' if bits == 'float' else f'{bits}-bit'
-            lines.append(f'| {steps} | {label} | {droll:.2f} | {dh:.2f} | {dv:.2f} | {gs:.2f} | '
-                         f'{acc["spikes"]:.3g} | {acc["synops"] / 1e6:.1f} / '
-                         f'{acc["synops_core"] / 1e6:.2f} | {acc["energy_uJ"]:.0f} / '
-                         f'{acc["energy_core_uJ"]:.1f} | {acc["time_us"]:.0f} | '
-                         f'{1.0 / np.median(dts):.0f} |')
-            print(lines[-1], flush=True)
+        variants.append(('float (timing only)',
+                         SpikingConfig(precision='float', steps_per_cycle=steps)))
+        variants += [(f'{bits}-bit', SpikingConfig(steps_per_cycle=steps, weight_bits=bits))
+                     for bits in (4, 6, 8)]
+    # Ablations at T = 32, 8-bit: realisations and codes other than the default.
+    variants += [('8-bit, delay synapses', SpikingConfig(synapse='delay')),
+                 ('8-bit, ReLU threshold p', SpikingConfig(nonlinearity='relu')),
+                 ('8-bit, 4-bit payloads', SpikingConfig(payload_bits=4)),
+                 ('8-bit, binary spikes', SpikingConfig(payload_bits=1))]
+    for label, sc in variants:
+        es, dts, acc = run(cfg, BackendConfig('spiking', sc), t, imgs, seed)
+        droll, dh, dv = differences(es, ef)
+        gs = geodesic(gt, t, es)
+        lines.append(f'| {sc.steps_per_cycle} | {label} | {droll:.2f} | {dh:.2f} | {dv:.2f} | '
+                     f'{gs:.2f} | {acc["spikes"]:.3g} | {acc["synops"] / 1e6:.1f} / '
+                     f'{acc["synops_core"] / 1e6:.2f} | {acc["energy_uJ"]:.0f} / '
+                     f'{acc["energy_core_uJ"]:.1f} | {acc["time_us"]:.0f} | '
+                     f'{1.0 / np.median(dts):.0f} |')
+        print(lines[-1], flush=True)
     return '\n'.join(lines)
 
 
