@@ -242,3 +242,24 @@ def test_accounting_energy_and_time_follow_the_counts() -> None:
     # The dense path is dominated by ~5 dense N x N complex products (8 real ops per MAC).
     assert 4.5 * 8 * 6912**2 < ops['dense'] < 6 * 8 * 6912**2
     assert ops['fast'] < ops['dense'] / 100
+
+
+def test_spiking_imu_prediction_shifts_the_state_spikes_like_the_float_backend() -> None:
+    """A gyro increment moves the spiking states (re-encoded spikes) as it moves the float ones."""
+    from hrn_vo_ros.core.hrn import HRN
+    focal = 80.0
+    cfg = from_dict(ResonatorConfig, {'map': {'learn': False},
+                                      'imu': {'enabled': True, 'focal_px': focal}})
+    moved = (7.0, -5.0, 0.0, 0.0)
+    gyro = np.array([-moved[1] / focal, moved[0] / focal, 0.0])   # camera turn for that shift
+    out = {}
+    for name, b in (('float', HRN(cfg, rng=np.random.default_rng(1))),
+                    ('spiking', SpikingHRN(cfg, rng=np.random.default_rng(1)))):
+        rng = np.random.default_rng(0)
+        scene = random_scene(rng)
+        for i in range(15):
+            b.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 5_000_000)
+        e = b.step(event_frame(scene, moved, rng), 15 * 5_000_000, gyro_delta=gyro)
+        out[name] = np.array([e.h, e.v])
+    np.testing.assert_allclose(out['spiking'], out['float'], atol=0.5)
+    assert np.all(np.abs(out['spiking'] - moved[:2]) < 1.0), out
