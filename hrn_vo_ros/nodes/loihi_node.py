@@ -35,6 +35,9 @@ class LoihiNode(ResonatorNode):
         overrides.append(Parameter('backend.name', value='spiking'))
         super().__init__('loihi_node', parameter_overrides=overrides, **kwargs)
         self._pub_raster = self.create_publisher(Image, '~/spike_raster', 2)
+        sc = self._backend.config.spiking
+        self.get_logger().info(f'spiking backend: {sc.precision}, T = {sc.steps_per_cycle} '
+                               f'steps/cycle, {sc.weight_bits}-bit weights, {sc.synapse} synapses')
 
     def _publish_images(self, t_ns: int) -> None:
         before = self._last_image_wall
