@@ -23,7 +23,7 @@ Examples::
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import json
 import os
 from pathlib import Path
@@ -37,7 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from hrn_vo_ros.core.baseline import BaselineConfig, PhaseCorrelationBaseline  # noqa: E402
+from hrn_vo_ros.core.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries  # noqa: E402
 from hrn_vo_ros.core.frames import Packetizer  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate  # noqa: E402
@@ -116,10 +116,7 @@ def run_baseline(case: Case, dataset: Path, out: Path) -> float:
     pcfg, rcfg = load_configs(ROOT / 'config' / case.config,
                               packetizer={'sensor_width': width, 'sensor_height': height},
                               resonator={})
-    bcfg = BaselineConfig(width=pcfg.width, height=pcfg.height, mu1=rcfg.map.mu1,
-                          mu2=rcfg.map.mu2, block_iterations=rcfg.map.block_iterations,
-                          learn_map=rcfg.map.learn, scale=rcfg.scale.enabled,
-                          max_log_scale=rcfg.scale.max_log_scale)
+    bcfg = replace(config_like(rcfg), width=pcfg.width, height=pcfg.height)
     packetizer = Packetizer(pcfg)
     base = PhaseCorrelationBaseline(bcfg)
     rows = []
@@ -167,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--no-hrn', action='store_true', help='baseline only')
     p.add_argument('--plots', action='store_true', help='write trajectory PNGs in --work')
     p.add_argument('--quick', action='store_true', help='one seed (101), 8 s sequences')
+    p.add_argument('--reuse', nargs='*', choices=('hrn', 'baseline'), default=[],
+                   help='re-evaluate existing estimate CSVs of these methods instead of '
+                        'running them again')
     args = p.parse_args(argv)
     if args.quick:
         args.seeds, args.seconds = args.seeds[:1], 8.0
@@ -185,7 +185,10 @@ def main(argv: list[str] | None = None) -> int:
                 est = work / 'est' / f'{name}_{args.seconds:g}s_seed{seed}_{method}.csv'
                 est.parent.mkdir(parents=True, exist_ok=True)
                 try:
-                    wall = runner(case, ds, est)
+                    if method in args.reuse and est.exists():
+                        wall = float('nan')
+                    else:
+                        wall = runner(case, ds, est)
                     plot = (work / 'plots' / f'{est.stem}.png') if args.plots else None
                     res = evaluate(case, ds, est, plot)
                 except RuntimeError as err:

@@ -7,6 +7,7 @@ Public API (same step interface and output as :class:`hrn_vo_ros.core.hrn.HRN`):
     PhaseCorrelationBaseline(cfg=None, *, rng=None)
         .step(image, t_ns, *, gyro_delta=None) -> Estimate     # h, v (map px), r (rad), z
         .map_image() -> (H_c, W_c) float64
+    config_like(resonator_cfg) -> BaselineConfig   # same frame size, map anchoring, scale
     run_baseline(t_ns, images, cfg=None) -> list[Estimate]
 
 Per event frame I (binary, placed in the centre of a zero canvas like the HRN's input):
@@ -50,6 +51,7 @@ import scipy.fft as sfft
 
 from hrn_vo_ros.core.configbase import param, validate
 from hrn_vo_ros.core.estimate import Estimate
+from hrn_vo_ros.core.hrn import ResonatorConfig
 from hrn_vo_ros.errors import TrackingError
 
 F64 = NDArray[np.float64]
@@ -317,6 +319,14 @@ class PhaseCorrelationBaseline:
     def map_image(self) -> F64:
         """The map (canvas-sized intensity image)."""
         return self.map.copy()
+
+
+def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
+    """Baseline settings matching an HRN config: frame size, map anchoring and scale factor."""
+    return BaselineConfig(width=rcfg.width, height=rcfg.height, mu1=rcfg.map.mu1,
+                          mu2=rcfg.map.mu2, block_iterations=rcfg.map.block_iterations,
+                          learn_map=rcfg.map.learn, scale=rcfg.scale.enabled,
+                          max_log_scale=rcfg.scale.max_log_scale)
 
 
 def run_baseline(t_ns: NDArray[np.int64], images: NDArray[np.generic],

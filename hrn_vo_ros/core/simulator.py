@@ -347,12 +347,15 @@ def shapes_texture(rng: np.random.Generator, *, half_extent: float, texel: float
     x0 = y0 = -half_extent
     light = 0.8 * (1 + 0.06 * _smooth_noise(rng, (n, n), 0.25 / texel))
     img = light.copy()
-    n_shapes = int(round(density * (2 * half_extent) ** 2))
+    # stratified placement (a jittered grid, like a poster layout): the number of shapes in
+    # view, and so the event rate, varies little from seed to seed
+    cell = 1.0 / math.sqrt(density)
+    centres = np.arange(-half_extent + cell / 2, half_extent, cell)
     kinds = ('poly', 'poly', 'star', 'ellipse', 'ellipse', 'rect')
-    for _ in range(n_shapes):
+    for gx, gy in ((a, b) for a in centres for b in centres):
         kind = kinds[int(rng.integers(len(kinds)))]
         size = float(rng.uniform(0.03, 0.09))
-        cx, cy = rng.uniform(-half_extent, half_extent, 2)
+        cx, cy = np.array([gx, gy]) + rng.uniform(-0.4, 0.4, 2) * cell
         value = float(rng.choice([rng.uniform(0.06, 0.15), rng.uniform(0.15, 0.45)]))
         _paint(img, rng, x0, y0, texel, float(cx), float(cy), kind, size, value)
     img *= 1 + 0.01 * rng.standard_normal(img.shape)  # paper grain
