@@ -42,6 +42,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+import functools
 import json
 import os
 from pathlib import Path
@@ -670,10 +671,38 @@ def _write_table(path: Path, t: NDArray[np.int64], values: NDArray[np.float64]) 
             f.write(_fmt_ns(ti) + ' ' + ' '.join(repr(v) for v in row) + '\n')
 
 
-def _digits(v: NDArray[np.int64], width: int) -> NDArray[np.uint8]:
-    """ASCII digits of non-negative ints, zero-padded to ``width``. Shapes: (n,) -> (n, width)."""
+@functools.cache
+def _digit_table() -> tuple[NDArray[np.uint8], NDArray[np.int64]]:
+    """ASCII digits (zero-padded to 5) and digit counts of 0..65535.
+
+    Shapes:
+        (65536, 5) uint8 and (65536,) int64.
+    """
+    v = np.arange(65536, dtype=np.int64)
+    return _digits_div(v, 5), _ndigits(v, 5)
+
+
+def _digits_div(v: NDArray[np.int64], width: int) -> NDArray[np.uint8]:
     pow10 = 10 ** np.arange(width - 1, -1, -1, dtype=np.int64)
     return ((v[:, None] // pow10) % 10 + 48).astype(np.uint8)
+
+
+def _digits(v: NDArray[np.int64], width: int) -> NDArray[np.uint8]:
+    """ASCII digits of non-negative ints, zero-padded to ``width``, by table look-up of groups of
+    four digits (values up to 10^width - 1).
+
+    Shapes:
+        v: (n,) -> (n, width) uint8.
+    """
+    table = _digit_table()[0]
+    out = np.empty((v.shape[0], width), np.uint8)
+    end = width
+    while end > 0:
+        k = min(4, end)
+        group = (v // 10 ** (width - end)) % 10 ** k
+        out[:, end - k:end] = table[group][:, 5 - k:]
+        end -= k
+    return out
 
 
 def _ndigits(v: NDArray[np.int64], width: int) -> NDArray[np.int64]:
@@ -686,30 +715,32 @@ def _ndigits(v: NDArray[np.int64], width: int) -> NDArray[np.int64]:
 def format_events(ev: EventArray) -> bytes:
     """``events.txt`` lines (``S.FFFFFFFFF X Y P``) for a batch, vectorised (no per-line Python).
 
-    Builds one fixed-width byte row per event and drops the leading zeros of the variable-width
-    fields with a mask.
+    Builds one fixed-width byte row per event (digits by table look-up) and drops the leading
+    zeros of the variable-width fields with a mask.
     """
     n = len(ev)
     if n == 0:
         return b''
+    table, counts = _digit_table()
     t = ev.t.astype(np.int64)
     sec, frac = t // _NS_PER_S, t % _NS_PER_S
-    fields = [(sec, len(str(int(sec.max()))), True), (None, 1, b'.'), (frac, 9, False),
-              (None, 1, b' '), (ev.x.astype(np.int64), 5, True), (None, 1, b' '),
-              (ev.y.astype(np.int64), 5, True), (None, 1, b' '),
-              (ev.p.astype(np.int64), 1, True), (None, 1, b'\n')]
-    width = sum(f[1] for f in fields)
+    ws = len(str(int(sec.max())))
+    width = ws + 1 + 9 + 1 + 5 + 1 + 5 + 1 + 1 + 1
     rows = np.empty((n, width), np.uint8)
     keep = np.ones((n, width), bool)
-    col = 0
-    for values, w, spec in fields:
-        if values is None:
-            assert isinstance(spec, bytes)
-            rows[:, col] = spec[0]
-        else:
-            rows[:, col:col + w] = _digits(values, w)
-            if spec:  # variable width: drop leading zeros
-                keep[:, col:col + w] = (np.arange(w)[None, :]
-                                        >= (w - _ndigits(values, w))[:, None])
-        col += w
+    cols = np.arange(5)[None, :]
+    rows[:, :ws] = _digits(sec, ws)
+    keep[:, :ws] = np.arange(ws)[None, :] >= (ws - _ndigits(sec, ws))[:, None]
+    c = ws
+    rows[:, c] = ord('.')
+    rows[:, c + 1:c + 10] = _digits(frac, 9)
+    c += 10
+    for coord in (ev.x, ev.y):
+        rows[:, c] = ord(' ')
+        rows[:, c + 1:c + 6] = table[coord]
+        keep[:, c + 1:c + 6] = cols >= (5 - counts[coord])[:, None]
+        c += 6
+    rows[:, c] = ord(' ')
+    rows[:, c + 1] = ev.p + 48
+    rows[:, c + 2] = ord('\n')
     return rows[keep].tobytes()
