@@ -222,3 +222,12 @@ def test_interrupted_conversion_leaves_nothing(tmp_path: Path) -> None:
     with pytest.raises(KeyboardInterrupt):
         convert.convert(FIXTURES / 'seq1s', tmp_path / 'out', progress=interrupt)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_events_only_folder_converts(tmp_path: Path) -> None:
+    folder = tmp_path / 'bare'
+    folder.mkdir()
+    shutil.copy(FIXTURES / 'seq1s' / 'events.txt', folder / 'events.txt')
+    stats = convert.convert(folder, tmp_path / 'bag')
+    assert (stats.events, stats.checksum) == (EXPECTED['events'], EXPECTED['checksum'])
+    assert (stats.imu, stats.poses, stats.camera_info) == (0, 0, 0)

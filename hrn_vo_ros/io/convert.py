@@ -107,8 +107,8 @@ def open_source(src: Path | str, *, sensor_size: tuple[int, int] | None = None,
 
 def _open_ecd(path: Path, sensor_size: tuple[int, int] | None) -> Source:
     size = sensor_size or ecd.read_sensor_size(path)
-    calib = ecd.read_calib(path)
-    if sensor_size is not None:
+    calib = ecd.read_calib(path) if _has(path, ecd.CALIB_FILE) else None  # no camera_info then
+    if calib is not None and sensor_size is not None:
         calib = _resized(calib, sensor_size)
     seq_imu = ecd.read_imu(path) if _has(path, ecd.IMU_FILE) else None
     seq_gt = ecd.read_groundtruth(path) if _has(path, ecd.GROUNDTRUTH_FILE) else None
