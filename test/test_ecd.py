@@ -97,6 +97,7 @@ def test_plain_dataset_folder_defaults_to_davis240(tmp_path: Path) -> None:
     assert ev.t.tolist() == [0, 11000] and ev.x.tolist() == [33, 239]
     assert ev.p.tolist() == [1, 0]
     assert ecd.event_count(folder) is None
+    assert ecd.estimate_event_count(folder) == 2
     assert ecd.read_calib(folder).width == 240
 
 

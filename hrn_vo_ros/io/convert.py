@@ -66,7 +66,7 @@ class Source:
     calib: CameraCalibration | None = None
     imu: ImuData | None = None
     groundtruth: Trajectory | None = None
-    total_events: int | None = None
+    total_events: int | None = None  # exact or estimated, for progress bars
     closer: ExitStack = field(default_factory=ExitStack)
 
 
@@ -115,7 +115,7 @@ def _open_ecd(path: Path, sensor_size: tuple[int, int] | None) -> Source:
     return Source(kind='ecd-zip' if path.suffix == '.zip' else 'ecd-text', path=path,
                   events=lambda: ecd.iter_events(path, sensor_size=size), width=size[0],
                   height=size[1], calib=calib, imu=seq_imu, groundtruth=seq_gt,
-                  total_events=ecd.event_count(path))
+                  total_events=ecd.estimate_event_count(path))
 
 
 def _has(path: Path, name: str) -> bool:
