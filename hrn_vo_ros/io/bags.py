@@ -351,7 +351,7 @@ def iter_bag_events(path: Path | str, *, topic: str | None = None) -> Iterator[E
             found = ', '.join(topics) or 'none'
             raise BagError(f'{path}: need exactly one event topic (EventPacket or dvs '
                            f'EventArray){" named " + topic if topic else ""}; found {found}')
-        decoder = eventpacket.PacketDecoder()
+        decoder: eventpacket.PacketDecoder | None = None
         for m in iter_messages(reader, topics):
             if m.msgtype == DVS_EVENT_ARRAY:
                 yield eventpacket.decode_dvs_cdr(m.raw).events
@@ -361,5 +361,8 @@ def iter_bag_events(path: Path | str, *, topic: str | None = None) -> Iterator[E
             except Exception as err:
                 raise DecodeError(f'{path}: {m.topic} at {m.t_ns} ns: corrupt EventPacket '
                                   f'({err})') from err
+            if decoder is None:  # evt3: drop out-of-sensor events, as the C++ decoder does
+                decoder = eventpacket.PacketDecoder(width=int(msg.width) or None,
+                                                    height=int(msg.height) or None)
             yield decoder.decode(msg.encoding, msg.events, time_base=int(msg.time_base),
                                  is_bigendian=bool(msg.is_bigendian))
