@@ -13,7 +13,7 @@ import pytest
 
 from hrn_vo_ros.cli.main import main as hrn_vo
 from hrn_vo_ros.core.events import EventArray, EventChecksum
-from hrn_vo_ros.core.playback import PlaybackConfig, PlaybackSchedule
+from hrn_vo_ros.core.playback import play, PlaybackConfig, PlaybackSchedule
 from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import bags, convert, ecd
@@ -37,6 +37,29 @@ def test_clock_ticks_are_rate_limited_and_monotonic() -> None:
     assert s.clock_tick(20_000_000, 0.02) == 20_000_000
     assert s.clock_tick(10_000_000, 0.5) is None  # never backwards
     assert s.clock_tick(20_000_001, 0.0201, force=True) == 20_000_001
+
+
+def test_play_loop_publishes_on_time_with_a_fake_clock() -> None:
+    wall = [100.0]
+    log: list[tuple[str, float, object]] = []
+
+    def sleep(dt: float) -> None:
+        wall[0] += dt
+
+    records = [('/a', 10**9, b'0'), ('/b', 15 * 10**8, b'1'), ('/a', 15 * 10**8, b'2'),
+               ('/a', 3 * 10**9, b'3')]
+    sent = play(records, lambda topic, raw: log.append((topic, wall[0], raw)), rate=2.0,
+                clock=lambda t: log.append(('clock', wall[0], t)), now=lambda: wall[0],
+                sleep=sleep)
+    assert sent == {'/a': 3, '/b': 1}
+    assert log == [('clock', 100.0, 10**9), ('/a', 100.0, b'0'),
+                   ('clock', 100.25, 15 * 10**8), ('/b', 100.25, b'1'), ('/a', 100.25, b'2'),
+                   ('clock', 101.0, 3 * 10**9), ('/a', 101.0, b'3')]
+    wall[0] = 0.0
+    log.clear()
+    play(records, lambda topic, raw: log.append((topic, wall[0], raw)), rate=None,
+         now=lambda: wall[0], sleep=sleep)
+    assert [entry[1] for entry in log] == [0.0] * 4  # max rate: no waiting
 
 
 def test_config_is_validated() -> None:

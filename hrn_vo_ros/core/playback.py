@@ -12,7 +12,9 @@ per wall second, never going backwards (for ``use_sim_time`` nodes).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+import time
 
 from hrn_vo_ros.core.configbase import param, validate
 
@@ -93,3 +95,47 @@ class PlaybackSchedule:
         self._last_clock_ns = t_ns
         self._last_clock_wall = wall_s
         return t_ns
+
+
+def play(records: Iterable[tuple[str, int, bytes]], publish: Callable[[str, bytes], None], *,
+         rate: float | None, clock: Callable[[int], None] | None = None,
+         clock_hz: float = 100.0, now: Callable[[], float] = time.monotonic,
+         sleep: Callable[[float], None] = time.sleep) -> dict[str, int]:
+    """Publish ``(topic, bag time ns, payload)`` records on time (the player's loop, ROS-free).
+
+    Sleeps until each record is due (:class:`PlaybackSchedule`), ticks ``clock`` before it when
+    a tick is due, and ticks once more with the last bag time at the end.
+
+    Args:
+        records: In bag-time order.
+        publish: Sends one payload on a topic.
+        rate: Speed factor, None for as fast as ``publish`` returns.
+        clock: Receives ``/clock`` values (ns), or None.
+        clock_hz: Largest clock rate per wall second.
+        now: Wall clock (monotonic seconds); injectable for tests.
+        sleep: Sleeps that many seconds; injectable for tests.
+
+    Returns:
+        Records published per topic.
+    """
+    sent: dict[str, int] = {}
+    schedule: PlaybackSchedule | None = None
+    last_t: int | None = None
+    for topic, t_ns, raw in records:
+        if schedule is None:
+            schedule = PlaybackSchedule(t_ns, now(), rate=rate, clock_hz=clock_hz)
+        delay = schedule.due(t_ns) - now()
+        if delay > 0:
+            sleep(delay)
+        if clock is not None:
+            tick = schedule.clock_tick(t_ns, now())
+            if tick is not None:
+                clock(tick)
+        publish(topic, raw)
+        sent[topic] = sent.get(topic, 0) + 1
+        last_t = t_ns
+    if clock is not None and schedule is not None and last_t is not None:
+        tick = schedule.clock_tick(last_t, now(), force=True)
+        if tick is not None:
+            clock(tick)
+    return sent

@@ -27,7 +27,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from hrn_vo_ros.core.playback import PlaybackConfig, PlaybackSchedule
+from hrn_vo_ros.core.playback import play, PlaybackConfig
 from hrn_vo_ros.errors import BagError, HrnVoError
 from hrn_vo_ros.io import bags, ros_msgs
 
@@ -119,38 +119,24 @@ class BagPlayer(Node):
         cfg = self.cfg
         if cfg.wait_for_subscribers:
             self.wait_for_subscribers()
+        records = ((m.topic, m.t_ns, bytes(m.raw))
+                   for m in bags.iter_messages(self.reader, self.topics))
+        sent = play(records, lambda topic, raw: self.pubs[topic].publish(raw),
+                    rate=None if cfg.max_rate else cfg.rate, clock_hz=cfg.clock_hz,
+                    clock=self._publish_clock if self.clock_pub is not None else None)
         ack = Duration(seconds=cfg.ack_timeout_s)
-        schedule: PlaybackSchedule | None = None
-        last_t = None
-        for m in bags.iter_messages(self.reader, self.topics):
-            if schedule is None:
-                schedule = PlaybackSchedule(m.t_ns, time.monotonic(),
-                                            rate=None if cfg.max_rate else cfg.rate,
-                                            clock_hz=cfg.clock_hz)
-            delay = schedule.due(m.t_ns) - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            self._tick(schedule, m.t_ns)
-            pub = self.pubs[m.topic]
-            pub.publish(bytes(m.raw))
-            self.sent[m.topic] += 1
-            last_t = m.t_ns
-        if schedule is not None and last_t is not None:
-            self._tick(schedule, last_t, force=True)
         for pub in self.pubs.values():
             pub.wait_for_all_acked(ack)
         time.sleep(LINGER_S)
+        self.sent.update(sent)
         self.get_logger().info(f'played {cfg.bag}: {self.sent}')
         return dict(self.sent)
 
-    def _tick(self, schedule: PlaybackSchedule, t_ns: int, *, force: bool = False) -> None:
-        if self.clock_pub is None:
-            return
-        tick = schedule.clock_tick(t_ns, time.monotonic(), force=force)
-        if tick is not None:
-            msg = Clock()
-            msg.clock.sec, msg.clock.nanosec = divmod(tick, 1_000_000_000)
-            self.clock_pub.publish(msg)
+    def _publish_clock(self, t_ns: int) -> None:
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(t_ns, 1_000_000_000)
+        assert self.clock_pub is not None
+        self.clock_pub.publish(msg)
 
     def destroy_node(self) -> None:
         """Close the bag with the node."""
