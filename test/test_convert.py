@@ -156,6 +156,27 @@ def test_ros2_evt3_bag_repacketises_to_mono(tmp_path: Path, rng: np.random.Gener
     assert digest(bags.iter_bag_events(tmp_path / 'mono')) == digest([ev])
 
 
+def test_ros2_dvs_bag_converts(tmp_path: Path) -> None:
+    ts = bags.typestore()
+    T = ts.types
+    ev = ecd.read_events(FIXTURES / 'seq1s')[:300]
+    with bags.BagWriter(tmp_path / 'dvs') as w:
+        conn = w.add_topic('/dvs/events', bags.DVS_EVENT_ARRAY, bags.EVENTS_QOS)
+        for i in range(0, 300, 100):
+            part = ev[i:i + 100]
+            events = [T['dvs_msgs/msg/Event'](x=int(x), y=int(y), ts=T[
+                'builtin_interfaces/msg/Time'](sec=int(t) // 10**9, nanosec=int(t) % 10**9),
+                polarity=bool(p)) for t, x, y, p in zip(part.t, part.x, part.y, part.p,
+                                                        strict=True)]
+            msg = T[bags.DVS_EVENT_ARRAY](header=T['std_msgs/msg/Header'](
+                stamp=T['builtin_interfaces/msg/Time'](sec=0, nanosec=i), frame_id='dvs'),
+                height=180, width=240, events=events)
+            w.write(conn, i, ts.serialize_cdr(msg, bags.DVS_EVENT_ARRAY))
+    stats = convert.convert(tmp_path / 'dvs', tmp_path / 'mono')
+    assert (stats.events, stats.source_kind) == (300, 'ros2')
+    assert digest(bags.iter_bag_events(tmp_path / 'mono')) == digest([ev])
+
+
 def write_bad(tmp_path: Path, kind: str) -> tuple[list[str], str]:
     """A bad input and the words its error message must contain."""
     folder = tmp_path / 'seq'

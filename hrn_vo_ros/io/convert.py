@@ -2,7 +2,8 @@
 
 Sources (:func:`open_source`): an Event Camera Dataset text folder or its ``.zip``, an Event
 Camera Dataset ROS 1 ``.bag``, a ROS 2 bag with an EventPacket topic of any known encoding
-(e.g. a live ``evt3`` recording; events only), a NumPy event file (``.npy``/``.npz``, see
+(e.g. a live ``evt3`` recording) or a dvs_msgs/EventArray topic (events only), a NumPy event
+file (``.npy``/``.npz``, see
 :mod:`hrn_vo_ros.io.npy`), or a folder holding ``events.npy``/``events.npz`` with the dataset's
 side files (``calib.txt``, ``imu.txt``, ``groundtruth.txt`` or a TUM-like ``trajectory.txt``,
 optional ``meta.json``). The simulator's output is a text folder, so it converts too.
@@ -157,19 +158,25 @@ def _open_ros1(path: Path, sensor_size: tuple[int, int] | None) -> Source:
 
 
 def _open_ros2(path: Path, sensor_size: tuple[int, int] | None) -> Source:
-    """A ROS 2 bag with an event topic (e.g. a live evt3 recording): re-packetised as mono."""
+    """A ROS 2 bag with an event topic (a live evt3 recording, or dvs_msgs/EventArray as
+    ``rosbags-convert`` makes from the dataset's ROS 1 bags): events re-packetised as mono."""
     size = sensor_size
     if size is None:
         ts = bags.typestore()
         with bags.open_bag(path) as reader:
-            conns = [c for c in reader.connections if c.msgtype == bags.EVENT_PACKET]
+            conns = [c for c in reader.connections
+                     if c.msgtype in (bags.EVENT_PACKET, bags.DVS_EVENT_ARRAY)]
             for m in bags.iter_messages(reader, [c.topic for c in conns][:1]):
-                msg: Any = ts.deserialize_cdr(m.raw, bags.EVENT_PACKET)
-                size = (int(msg.width), int(msg.height))
+                if m.msgtype == bags.DVS_EVENT_ARRAY:
+                    arr = eventpacket.decode_dvs_cdr(m.raw)
+                    size = (arr.width, arr.height)
+                else:
+                    msg: Any = ts.deserialize_cdr(m.raw, bags.EVENT_PACKET)
+                    size = (int(msg.width), int(msg.height))
                 break
     if size is None:
-        raise DatasetError('has no EventPacket messages to take the sensor size from; pass '
-                           '--sensor-size', path=path)
+        raise DatasetError('has no event messages (EventPacket or dvs EventArray) to take the '
+                           'sensor size from; pass --sensor-size', path=path)
     return Source(kind='ros2', path=path, events=lambda: bags.iter_bag_events(path),
                   width=size[0], height=size[1])
 
