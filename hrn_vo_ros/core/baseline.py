@@ -21,8 +21,9 @@ Per event frame I (binary, placed in the centre of a zero canvas like the HRN's 
    angle, its θ + π twin (each only within ±``max_roll_step_deg`` of the previous roll) and a
    local grid around the previous roll (±``local_steps`` ×
    ``local_step_deg``) by the height of the translation phase-correlation peak (step 2),
-   refined by a parabola on the local grid. Without the scale factor the FM peak is searched
-   in the zero-zoom row only.
+   refined by a parabola on the local grid. With the scale factor the zoom is then chosen the
+   same way among the FM zoom and a local grid around the previous zoom (the roll search uses
+   the previous zoom). Without it the FM peak is searched in the zero-zoom row only.
    Spectra are taken on a square zero-padded grid with a circular Hann window (a rectangular
    grid or window would not rotate with the content).
 2. **Translation, phase correlation**: the frame is de-rotated (and de-zoomed) about the image
@@ -83,6 +84,8 @@ class BaselineConfig:
                              hi=100)
     local_step_deg: float = param(1.5, 'spacing of the local roll search, degrees', lo=0.01,
                                   hi=45.0)
+    local_zoom_step: float = param(0.02, 'spacing of the local log-zoom search (scale on)',
+                                   lo=0.001, hi=1.0)
     max_roll_step_deg: float = param(30.0, 'largest roll change accepted between frames '
                                      '(gates the Fourier–Mellin candidates), degrees',
                                      lo=1.0, hi=180.0)
@@ -224,6 +227,17 @@ class PhaseCorrelationBaseline:
         # content zoomed by e^z shrinks the spectrum: the log-radius shift is -z / log_base
         return float(angle), float(-drho * self.log_base)
 
+    def _register(self, img: F64, angle: float, zoom: float, M: C128) -> tuple[float, F64]:
+        """Peak height and translation correlation surface of the de-rotated frame vs. map."""
+        c = self.cfg
+        canvas = np.zeros((self.H, self.W))
+        canvas[self.oy:self.oy + c.height, self.ox:self.ox + c.width] = (
+            self._warp(img, angle, zoom) * self.win)
+        corr = _phase_corr(sfft.fft2(canvas), M)
+        if c.peak_smoothing > 0:
+            corr = ndimage.gaussian_filter(corr, c.peak_smoothing, mode='wrap')
+        return float(corr.max()), corr
+
     def _warp(self, img: F64, angle: float, log_zoom: float) -> F64:
         """Rotate ``img`` by -angle and zoom by exp(-log_zoom) about the image centre."""
         h, w = img.shape
@@ -267,7 +281,7 @@ class PhaseCorrelationBaseline:
             return self._emit(t_ns, valid=True)
         self.iteration += 1
         angle, log_zoom = self._rotation_scale(img)
-        zoom = float(np.clip(log_zoom, -c.max_log_scale, c.max_log_scale)) if c.scale else 0.0
+        fm_zoom = float(np.clip(log_zoom, -c.max_log_scale, c.max_log_scale))
         # candidates: the Fourier–Mellin angle and its θ + π twin (the magnitude spectrum cannot
         # tell them apart), and a local search around the previous angle; the one whose
         # de-rotated frame gives the highest translation peak wins
@@ -276,24 +290,24 @@ class PhaseCorrelationBaseline:
         step = math.radians(c.local_step_deg)
         local = [prev + k * step for k in range(-c.local_steps, c.local_steps + 1)]
         M = sfft.fft2(self.map)
-        results = []
         gate = math.radians(c.max_roll_step_deg)
         far = [a for a in (base, base + math.pi) if abs(a - prev) <= gate]
-        for cand in [*far, *local]:
-            derot = self._warp(img, cand, zoom) * self.win
-            canvas = np.zeros((self.H, self.W))
-            canvas[self.oy:self.oy + c.height, self.ox:self.ox + c.width] = derot
-            corr = _phase_corr(sfft.fft2(canvas), M)
-            if c.peak_smoothing > 0:
-                corr = ndimage.gaussian_filter(corr, c.peak_smoothing, mode='wrap')
-            results.append((float(corr.max()), cand, corr))
+        zoom = self.z if c.scale else 0.0
+        results = [(*self._register(img, cand, zoom, M), cand) for cand in [*far, *local]]
         k_best = int(np.argmax([r[0] for r in results]))
-        height, cand, corr = results[k_best]
-        n_loc = len(local)
+        height, corr, cand = results[k_best]
         k0 = len(far)
-        if k0 < k_best < k0 + n_loc - 1:   # refine inside the local grid
-            frac = _parabolic(results[k_best - 1][0], height, results[k_best + 1][0])
-            cand += frac * step
+        if k0 < k_best < k0 + len(local) - 1:   # refine inside the local grid
+            cand += step * _parabolic(results[k_best - 1][0], height, results[k_best + 1][0])
+        if c.scale:
+            # the same for the zoom: the Fourier–Mellin zoom and a local grid around the last
+            zs = [self.z + k * c.local_zoom_step for k in range(-2, 3)]
+            zres = [(*self._register(img, cand, zz, M), zz) for zz in [fm_zoom, *zs]]
+            kz = int(np.argmax([r[0] for r in zres]))
+            height, corr, zoom = zres[kz]
+            if 1 < kz < len(zres) - 1:
+                zoom += c.local_zoom_step * _parabolic(zres[kz - 1][0], height, zres[kz + 1][0])
+            zoom = float(np.clip(zoom, -c.max_log_scale, c.max_log_scale))
         dy, dx = _peak2(corr)
         self.z = zoom
         self.r = -(prev + ((cand - prev + math.pi) % (2 * math.pi) - math.pi))
