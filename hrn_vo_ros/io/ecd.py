@@ -324,7 +324,8 @@ class _EventParser:
         if bad.size:
             i = int(bad[0])
             msg = (f'event at x={x[i]}, y={y[i]} is outside the {self.width}x{self.height} '
-                   'sensor: wrong sensor size (meta.json) or a corrupt line')
+                   'sensor: a corrupt line, or give the right sensor size (meta.json; '
+                   'hrn-vo convert --sensor-size WxH)')
             raise DatasetError(msg, path=self.where, line=self._lineno(i, line_of))
         bad = np.flatnonzero((p != 0) & (p != 1))
         if bad.size:
