@@ -108,13 +108,14 @@ def test_other_layouts_parse_line_by_line(tmp_path: Path) -> None:
     assert ev.x.tolist() == [3, 5, 7] and ev.y.tolist() == [4, 6, 8]
 
 
-@pytest.mark.parametrize('eol', ['\n', '\r\n'])
-def test_six_decimals_fast_path(tmp_path: Path, eol: str,
+@pytest.mark.parametrize(('eol', 't0'), [('\n', 0), ('\r\n', 0), ('\n', 99_999_990),
+                                         ('\n', 1_468_939_993)])
+def test_six_decimals_fast_path(tmp_path: Path, eol: str, t0: int,
                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    lines = ''.join(f'{i}.{i:06d} {i % 240} {i % 180} {i % 2}{eol}' for i in range(1000))
+    lines = ''.join(f'{t0 + i}.{i:06d} {i % 240} {i % 180} {i % 2}{eol}' for i in range(1000))
     monkeypatch.setattr(ecd, '_parse_slow', None)  # must not be needed
     ev = ecd.read_events(write_plain(tmp_path / 'x', lines))
-    assert ev.t.tolist() == [i * 1_000_000_000 + i * 1000 for i in range(1000)]
+    assert ev.t.tolist() == [(t0 + i) * 1_000_000_000 + i * 1000 for i in range(1000)]
     assert ev.p.tolist() == [i % 2 for i in range(1000)]
 
 
@@ -132,6 +133,7 @@ GOOD = ''.join(f'0.{i:09d} {i % 240} {i % 180} 1\n' for i in range(1, 2001))
     (GOOD.replace('0.000001500 60 60 1', '0.000001500 60 -1 1'), 1500, 'outside the 240x180'),
     (GOOD.replace('0.000001500 60 60 1', '0.000000500 60 60 1'), 1500, 'sorted by time'),
     (GOOD + '0.0000', 2001, 'truncated'),
+    (GOOD + '9999999999.000000000 1 2 1\n', 2001, 'too large'),
 ])
 def test_bad_event_lines_name_file_and_line(tmp_path: Path, events: str, line: int,
                                             words: str) -> None:

@@ -350,7 +350,7 @@ _I64 = NDArray[np.int64]
 _U64 = np.uint64
 _ASCII_ZEROS = _U64(0x3030303030303030)
 _HIGH_NIBBLES = _U64(0xF0F0F0F0F0F0F0F0)
-_PAD = 8  # bytes of b'\n' before a chunk, so that every token has 8 readable bytes before its end
+_PAD = 16  # bytes of b'\n' before a chunk: every token has 16 readable bytes before its end
 
 
 def _swar_digits(u64: NDArray[np.uint64], end: _I64, width: _I64,
@@ -403,13 +403,18 @@ def _parse_fast(buf: bytes, n: int) -> tuple[_I64, _I64, _I64, _I64] | None:
     if not 1 <= w <= 9:
         return None
     wsec, wx, wy = dots - starts, s3[:, 1] - s3[:, 0] - 1, s3[:, 2] - s3[:, 1] - 1
-    layout_ok = bool(np.all((wsec >= 1) & (wsec <= 8) & (s3[:, 0] - dots == w + 1)
+    layout_ok = bool(np.all((wsec >= 1) & (wsec <= 10) & (s3[:, 0] - dots == w + 1)
                             & (wx >= 1) & (wx <= 5) & (wy >= 1) & (wy <= 5)
                             & ((nl - s3[:, 2] == 2)
                                | ((nl - s3[:, 2] == 3) & (arr[nl - 1] == 13)))))  # LF or CRLF
     if not layout_ok:
         return None
-    sec, bad = _swar_digits(u64, dots, wsec)
+    sec, bad = _swar_digits(u64, dots, np.minimum(wsec, 8))
+    long_sec = wsec > 8  # e.g. epoch stamps: 9-10 digits of seconds
+    if np.any(long_sec):
+        hi, bad_hi = _swar_digits(u64, dots - 8, np.clip(wsec - 8, 1, 8))
+        sec = np.where(long_sec, hi * 100_000_000 + sec, sec)
+        bad |= (long_sec & bad_hi) | (sec > _MAX_SECONDS)  # int64 ns would overflow
     wf = min(w, 8)
     frac, bad_f = _swar_digits(u64, s3[:, 0], np.full(n, wf, np.int64))
     bad |= bad_f
