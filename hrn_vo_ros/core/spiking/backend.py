@@ -129,22 +129,25 @@ class SpikingEngine(_FastEngine):
         st = {k: (self.spikes[k].count if k in self.spikes else 0) for k in ('h', 'v', 'r')}
         acc = IterationAccount()
 
-        def layer(name: str, neurons: int, spikes_in: int, synops: int) -> None:
+        def layer(name: str, neurons: int, spikes_in: int, synops: int, fan_in: int = 3) -> None:
+            # Fan-in above max_fan_in: each neuron becomes a dendritic tree of
+            # ceil(fan_in / max_fan_in) compartments (Loihi multi-compartment neurons).
+            neurons *= -(-fan_in // self.scfg.max_fan_in)
             acc.add(name, LayerCounts(spikes_in, synops, neurons * steps, 0))
             acc.neurons += neurons
 
-        layer('S = Λ Φ I (pixels → log-polar)', nl, self.pixels, self.pixels * nl)
+        layer('S = Λ Φ I (pixels → log-polar)', nl, self.pixels, self.pixels * nl, nc)
         layer('S ⊙ r̂* (bind)', nl, n_s + st['r'] * nr, n_s + st['r'] * nr)
-        layer("p̂ = Λ'(.) (dense)", nc, n_s, n_s * nc)
+        layer("p̂ = Λ'(.) (dense)", nc, n_s, n_s * nc, nl)
         layer('p̂ ⊙ m̂* (bind)', nc, n_p + n_m, n_p + n_m)
         layer('⊙ v̂*, ⊙ ĥ* (bind)', 2 * nc, 2 * n_p + st['v'] * wc + st['h'] * hc,
               2 * n_p + st['v'] * wc + st['h'] * hc)
-        layer('h, v marginals', wc + hc, 2 * n_p, 2 * n_p)
+        layer('h, v marginals', wc + hc, 2 * n_p, 2 * n_p, max(wc, hc))
         layer('m̂ ⊙ ĥ ⊙ v̂ (bind)', nc, n_m + st['h'] * hc + st['v'] * wc,
               n_m + st['h'] * hc + st['v'] * wc)
-        layer('l̂ = Λ(.) (dense)', nl, n_m, n_m * nl)
+        layer('l̂ = Λ(.) (dense)', nl, n_m, n_m * nl, nc)
         layer('S ⊙ l̂* (bind)', nl, n_s + n_l, n_s + n_l)
-        layer('r marginal', nt, n_l, n_l)
+        layer('r marginal', nt, n_l, n_l, nr)
         for k, cl in self.cleanups.items():
             counts = cl.reset_counts()
             for lname, c in counts.items():
@@ -197,8 +200,9 @@ class SpikingHRN(HRN):
                 g, steps = self.geometry, self.spiking.steps_per_cycle
                 nc = g.canvas_width * g.canvas_height
                 n_s = eng.sent['S'].count if 'S' in eng.sent else 0
+                parts = -(-g.n_theta * g.n_rho // self.spiking.max_fan_in)   # dendritic split
                 eng.account.add("map: Λ'(S ⊙ r^-r) ⊙ h^-h ⊙ v^-v",
-                                LayerCounts(n_s, n_s * nc + 2 * nc, 2 * nc * steps, 0))
+                                LayerCounts(n_s, n_s * nc + 2 * nc, (1 + parts) * nc * steps, 0))
             self.last_account = eng.account
         return est
 
