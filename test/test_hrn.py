@@ -118,10 +118,12 @@ def test_imu_fusion_helps_on_fast_motion() -> None:
     assert e_fused[2] < np.deg2rad(2.0) and e_fused[0] < 1.0
 
 
-@pytest.mark.parametrize('scale', [False, True])
-def test_fast_path_equals_dense_reference(scale: bool) -> None:
+@pytest.mark.parametrize(('scale', 'ring_weight'), [(False, 0.0), (True, 0.0), (False, 1.0),
+                                                   (True, 1.0)])
+def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float) -> None:
     """Same equations, same random draws: readouts agree within 1e-4 relative (32x24)."""
-    base = {'width': 32, 'height': 24, 'logpolar': {'n_theta': 32, 'n_rho': 16},
+    base = {'width': 32, 'height': 24,
+            'logpolar': {'n_theta': 32, 'n_rho': 16, 'ring_weight': ring_weight},
             'codebook': {'canvas_width': 36, 'canvas_height': 26},
             'map': {'block_iterations': 10}, 'scale': {'enabled': scale}}
     fast = make(base, seed=3)

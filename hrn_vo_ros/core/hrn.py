@@ -70,6 +70,7 @@ from hrn_vo_ros.core.estimate import Estimate
 from hrn_vo_ros.core.logpolar import (
     dense_lambdas,
     dense_lambdas_dft,
+    dense_ring_weighting,
     Geometry,
     LogPolarConfig,
     LogPolarTransform,
@@ -151,6 +152,10 @@ class ReadoutConfig:
 
     half_window: int = param(5, 'neighbours on each side of the peak in the population vector',
                              lo=0, hi=1000)
+    source: str = param('state', 'what the population vector reads: state (Re X^H x, the '
+                        'paper) or drive (Re X^H u of the last cleanup input: a smooth '
+                        'correlation peak that keeps sub-pixel detail the sharpened state '
+                        'loses)', choices=('state', 'drive'))
 
     def __post_init__(self) -> None:
         validate(self)
@@ -365,8 +370,14 @@ class _FastEngine:
         self.X = {k: b.matrix for k, b in self.books.items()}
         self.XH = {k: np.ascontiguousarray(x.conj().T) for k, x in self.X.items()}
         self.col_norm = {k: math.sqrt(x.shape[0]) for k, x in self.X.items()}
+        self._full = {k: b.period is not None and len(b.values) == len(b.phases)
+                      and np.array_equal(b.values, np.arange(len(b.values)) - len(b.values) // 2)
+                      for k, b in self.books.items()}
         self.has_z = 'z' in self.books
+        self._sw_key: Complex | None = None
+        self._sw: Complex = np.zeros(0, np.complex128)
         self.state: dict[str, Complex] = {}
+        self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
         self.m = np.zeros((g.canvas_height, g.canvas_width), np.complex128)
         self.m0 = self.m
 
@@ -385,11 +396,31 @@ class _FastEngine:
         self.m0 = sfft.fft2(canvas, workers=1)          # m̂(0) = s(0) = Φ I(0)
         self.m = self.m0.copy()
 
+    # No BLAS in the hot path: multi-threaded gemv on these small sizes is slower than one
+    # thread and collapses when the cores are shared. Full DFT codebooks (K = n integer entries
+    # -n/2 .. n/2-1) decode with an inverse FFT and encode with an FFT; others (z) use
+    # elementwise products and sums.
+
+    def book_decode(self, name: str, a: Complex) -> Complex:
+        """``X† a`` for factor ``name``. Shapes: a (n,) → (K,)."""
+        n = a.shape[0]
+        if self._full[name]:
+            return np.asarray(np.roll(sfft.ifft(a, workers=1) * n, n // 2), np.complex128)
+        return np.asarray((self.XH[name] * a[None, :]).sum(axis=1), np.complex128)
+
+    def book_encode(self, name: str, p: Real) -> Complex:
+        """``X p`` for factor ``name``. Shapes: p (K,) → (n,)."""
+        if self._full[name]:
+            n = p.shape[0]
+            return np.asarray(sfft.fft(np.roll(p, -(n // 2)), workers=1), np.complex128)
+        return np.asarray((self.X[name] * p[None, :]).sum(axis=1), np.complex128)
+
     def _clean(self, name: str, a: Complex) -> Complex:
         # C_X(u) with u's weighted marginal a along the factor's axis: f(X p(Re X† a)).
-        c = np.real(self.XH[name] @ a)
-        bound = self.col_norm[name] * float(np.linalg.norm(a))
-        return fhrr.phasor(self.X[name] @ cleanup_weights(c, self.cfg.cleanup, bound))
+        c = np.real(self.book_decode(name, a))
+        bound = self.col_norm[name] * float(np.sqrt(np.vdot(a, a).real))
+        self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
+        return fhrr.phasor(self.book_encode(name, cleanup_weights(c, self.cfg.cleanup, bound)))
 
     def send(self, name: str, x: Complex) -> Complex:
         """Hook: the population ``name`` (S, m, p, l) sends ``x`` (identity here; the spiking
@@ -401,6 +432,13 @@ class _FastEngine:
         drive ``a`` (the spiking backend replaces it with its neuron layers)."""
         gam = self.cfg.cleanup.gamma
         return (1 - gam) * x + gam * self._clean(name, a)
+
+    def _weighted_input(self, S: Complex) -> Complex:
+        if not self.lp.weighted:
+            return S
+        if self._sw_key is not S:                   # once per frame (S is fixed within it)
+            self._sw_key, self._sw = S, self.lp.weight(S)
+        return self._sw
 
     def iterate(self, S: Complex) -> None:
         st = self.state
@@ -414,19 +452,21 @@ class _FastEngine:
             q *= z.conj()[:, None]
         u = self.send('p', self.lp.reverse(q))      # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
         u *= mc                                     # p̂ ⊙ m̂*
-        w = self.send('l', self.lp.forward(m * v[:, None] * h[None, :]))  # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
+        # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂); the roll/scale correlation uses ring-weighted log-polar images
+        # (D_w S ⊙ (D_w l̂)*, identity when logpolar.ring_weight = 0).
+        w = self.send('l', self.lp.forward_weighted(m * v[:, None] * h[None, :]))
         np.conjugate(w, out=w)
-        w *= S                                      # S ⊙ l̂*
+        w *= self._weighted_input(S)                # S ⊙ l̂*
         hb, vb, rb, zb = h, v, r, z
         if self.cfg.cleanup.whiten:                 # f(a ⊙ b) = f(a) ⊙ f(b): whiten factorwise
             u, w = fhrr.phasor(u), fhrr.phasor(w)
             hb, vb, rb = fhrr.phasor(h), fhrr.phasor(v), fhrr.phasor(r)
             zb = None if z is None else fhrr.phasor(z)
-        a_h = vb.conj() @ u                         # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
-        a_v = u @ hb.conj()                         # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
+        a_h = np.einsum('i,ij->j', vb.conj(), u)    # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
+        a_v = np.einsum('ij,j->i', u, hb.conj())    # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
         if z is not None and zb is not None:
-            a_r = zb.conj() @ w
-            a_z = w @ rb.conj()
+            a_r = np.einsum('i,ij->j', zb.conj(), w)
+            a_z = np.einsum('ij,j->i', w, rb.conj())
             st['z'] = self.update('z', z, a_z)
         else:
             a_r = w.sum(axis=0)
@@ -435,7 +475,7 @@ class _FastEngine:
         st['r'] = self.update('r', r, a_r)
 
     def similarities(self) -> dict[str, Real]:
-        return {k: _normalised(self.XH[k] @ x, x, self.col_norm[k])
+        return {k: _normalised(self.book_decode(k, x), x, self.col_norm[k])
                 for k, x in self.state.items()}
 
     def shift(self, name: str, delta: float) -> None:
@@ -499,15 +539,23 @@ class _DenseEngine:
         self.XH = {k: np.ascontiguousarray(x.conj().T) for k, x in self.X.items()}
         self.col_norm = {k: math.sqrt(x.shape[0]) for k, x in self.X.items()}
         self.phi_c = fhrr.grid_codebook(ph['h'], ph['v'], wc, hc).astype(dtype)
+        self.dw: NDArray[np.complexfloating] | None = None     # ring weighting D_w
         if cfg.codebook.kind == 'dft':
             self.lam, self.lam_r = dense_lambdas_dft(g, dtype=dtype)
+            if g.ring_weight:
+                self.dw = dense_ring_weighting(None, g, dtype=dtype)
         else:
             phi_lp = fhrr.grid_codebook(ph['r'], ph['z'], nt, nr)
             self.lam, self.lam_r = dense_lambdas(self.phi_c, phi_lp, g, rcond=cfg.codebook.rcond,
                                                  dtype=dtype)
+            if g.ring_weight:
+                self.dw = dense_ring_weighting(phi_lp, g, rcond=cfg.codebook.rcond, dtype=dtype)
+        self._sw_key: NDArray[np.complexfloating] | None = None
+        self._sw: NDArray[np.complexfloating] = np.zeros(0, dtype)
         self._pinv_c: NDArray[np.complex128] | None = None
         self.has_z = 'z' in self.books
         self.state: dict[str, NDArray[np.complexfloating]] = {}
+        self.drive: dict[str, Real] = {}
         self.m = np.zeros(self.phi_c.shape[0], dtype)
         self.m0 = self.m
 
@@ -541,6 +589,7 @@ class _DenseEngine:
     def _clean(self, name: str, u: NDArray[np.complexfloating]) -> NDArray[np.complexfloating]:
         c = np.real(self.XH[name] @ u).astype(np.float64)
         bound = self.col_norm[name] * float(np.linalg.norm(u))
+        self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
         out = self.X[name] @ cleanup_weights(c, self.cfg.cleanup, bound).astype(self.dtype)
         return fhrr.phasor(out.astype(np.complex128)).astype(self.dtype)
 
@@ -556,7 +605,13 @@ class _DenseEngine:
         h_new = (1 - gam) * h + gam * self._clean('h', wh(p * v.conj() * mc))
         v_new = (1 - gam) * v + gam * self._clean('v', wh(p * h.conj() * mc))
         lv = self.lam @ (self.m * h * v)                    # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
-        w = S * lv.conj()
+        sw = S
+        if self.dw is not None:                             # ring-weighted D_w S ⊙ (D_w l̂)*
+            lv = self.dw @ lv
+            if self._sw_key is not S:
+                self._sw_key, self._sw = S, self.dw @ S
+            sw = self._sw
+        w = sw * lv.conj()
         if z is not None:
             st['z'] = (1 - gam) * z + gam * self._clean('z', wh(w * r.conj()))
             w = w * z.conj()
@@ -735,6 +790,9 @@ class HRN:
             eng.iterate(S)
             self.iteration += 1
         sims = eng.similarities()
+        drive = getattr(eng, 'drive', {})
+        if c.readout.source == 'drive' and all(k in drive for k in sims):
+            sims = {k: drive[k] for k in sims}
         point, spread, peak = self._readout(sims)
         self._point = point
         updated = False

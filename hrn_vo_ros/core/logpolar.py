@@ -57,6 +57,10 @@ class LogPolarConfig:
     r_max: float = param(0.0, 'outermost ring radius in frame pixels (0: half the image '
                          'diagonal, so the grid covers the whole frame)', lo=0.0, hi=10000.0,
                          read_only=True)
+    ring_weight: float = param(0.0, 'exponent a of the ring weights (rho / r_max)^a of the '
+                               'log-polar images in the roll/scale updates (0: all rings equal; '
+                               '1: by arc length, so the over-sampled centre does not dominate)',
+                               lo=0.0, hi=4.0, read_only=True)
 
     def __post_init__(self) -> None:
         validate(self)
@@ -77,6 +81,7 @@ class Geometry:
     n_rho: int
     r_min: float
     r_max: float
+    ring_weight: float = 0.0
 
     @property
     def offset(self) -> tuple[int, int]:
@@ -120,12 +125,18 @@ def make_geometry(width: int, height: int, canvas_width: int, canvas_height: int
     r_max = lp.r_max or 0.5 * math.hypot(width, height)
     if r_max <= lp.r_min:
         raise ConfigError(f'r_max = {r_max} must exceed r_min = {lp.r_min}')
-    return Geometry(width, height, cw, ch, lp.n_theta, lp.n_rho, lp.r_min, r_max)
+    return Geometry(width, height, cw, ch, lp.n_theta, lp.n_rho, lp.r_min, r_max,
+                    lp.ring_weight)
 
 
 def lp_radii(g: Geometry) -> NDArray[np.float64]:
     """Ring radii ρ_j in pixels. Shapes: (n_rho,)."""
     return np.asarray(g.r_min * np.exp(np.arange(g.n_rho) * g.d_rho), np.float64)
+
+
+def ring_weights(g: Geometry) -> NDArray[np.float64]:
+    """Ring weights ``(ρ_j / r_max)^a`` (a = ``ring_weight``). Shapes: (n_rho,)."""
+    return np.asarray((lp_radii(g) / g.r_max) ** g.ring_weight, np.float64)
 
 
 def cart_to_lp_matrix(g: Geometry) -> sp.csr_matrix:
@@ -198,6 +209,10 @@ class LogPolarTransform:
         self._Trc = self.Tr.astype(np.complex128)
         self.lp_shape = (g.n_rho, g.n_theta)
         self.cart_shape = (g.canvas_height, g.canvas_width)
+        self.weighted = g.ring_weight != 0.0
+        self.w = ring_weights(g)
+        wrow = np.repeat(self.w, g.n_theta)
+        self._Twc = sp.diags(wrow).tocsr() @ self._Tc if self.weighted else self._Tc
 
     def encode_image_lp(self, canvas: NDArray[np.floating]) -> Complex:
         """``Λ s`` for ``s = fft2(canvas)``, computed directly: ``fft2_LP(T · canvas)``.
@@ -213,6 +228,20 @@ class LogPolarTransform:
         img = sfft.ifft2(x, workers=self.workers).ravel()
         out = sfft.fft2((self._Tc @ img).reshape(self.lp_shape), workers=self.workers)
         return np.asarray(out, np.complex128)
+
+    def forward_weighted(self, x: Complex) -> Complex:
+        """Λ_w x = fft2_LP(W T · ifft2_C(x)), W = diag(ring weights). Shapes: as forward."""
+        img = sfft.ifft2(x, workers=self.workers).ravel()
+        out = sfft.fft2((self._Twc @ img).reshape(self.lp_shape), workers=self.workers)
+        return np.asarray(out, np.complex128)
+
+    def weight(self, y: Complex) -> Complex:
+        """D_w y = fft2(W · ifft2(y)): ring-weight a log-polar vector. Shapes: (n_rho, n_theta)."""
+        if not self.weighted:
+            return y
+        img = sfft.ifft2(y, workers=self.workers)
+        img *= self.w[:, None]
+        return np.asarray(sfft.fft2(img, workers=self.workers), np.complex128)
 
     def reverse(self, y: Complex) -> Complex:
         """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
@@ -243,6 +272,26 @@ def dense_lambdas(phi_c: NDArray[np.complexfloating], phi_lp: NDArray[np.complex
     lam = (phi_lp @ (T @ pinv_c)).astype(dtype)
     lam_r = (phi_c @ (Tr @ pinv_lp)).astype(dtype)
     return lam, lam_r
+
+
+def dense_ring_weighting(phi_lp: NDArray[np.complexfloating] | None, g: Geometry, *,
+                         rcond: float = 1e-6,
+                         dtype: type[np.complexfloating] = np.complex128
+                         ) -> NDArray[np.complexfloating]:
+    """Dense D_w = Φ_LP W Φ_LP⁺ (ring weighting in the vector space); ``phi_lp=None``: DFT.
+
+    Shapes:
+        returns (N, N) (N = N_LP for DFT).
+    """
+    wrow = np.repeat(ring_weights(g), g.n_theta)
+    if phi_lp is None:
+        nr, nt = g.n_rho, g.n_theta
+        eye = np.eye(g.n_lp, dtype=np.complex128).reshape(g.n_lp, nr, nt)
+        finv = sfft.ifft2(eye, axes=(1, 2)).reshape(g.n_lp, g.n_lp).T       # F^-1 columns
+        tmp = (wrow[:, None] * finv).reshape(nr, nt, g.n_lp)
+        return np.asarray(sfft.fft2(tmp, axes=(0, 1)).reshape(g.n_lp, g.n_lp), dtype)
+    pinv_lp = np.linalg.pinv(phi_lp, rcond=rcond)
+    return np.asarray(phi_lp @ (wrow[:, None] * pinv_lp), dtype)
 
 
 def dense_lambdas_dft(g: Geometry, *, dtype: type[np.complexfloating] = np.complex128
