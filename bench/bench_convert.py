@@ -6,8 +6,9 @@ Builds a 20 s sequence (default: synthetic events at ~350 k/s, the rate of a sim
 sequence, ~7 M events; ``--simulate`` runs the project's simulator instead, which is slower),
 writes it in the Event Camera Dataset text layout, then times (medians of ``--repeats`` runs):
 
-* parsing ``events.txt`` alone (M lines/s),
+* parsing ``events.txt`` alone (M lines/s), and streamed from a ``.zip``,
 * ``hrn-vo convert`` to MCAP (M events/s; the acceptance figure, target >= 2),
+* converting the same sequence from a ROS 1 bag (dvs_msgs/EventArray),
 * reading the bag back and decoding mono (M events/s),
 * evt3 decoding of the same events (M events/s),
 
@@ -22,12 +23,13 @@ import shutil
 import statistics
 import tempfile
 import time
+import zipfile
 
 import numpy as np
 
 from hrn_vo_ros.core.events import EventArray, EventChecksum
 from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
-from hrn_vo_ros.io import bags, convert, ecd, eventpacket
+from hrn_vo_ros.io import bags, convert, ecd, eventpacket, ros1bag
 
 
 def synthetic(seconds: float, rate: float, seed: int = 0) -> Sequence:
@@ -95,6 +97,18 @@ def main() -> None:
                 c.update(ev)
             assert (c.count, c.hexdigest()) == (stats[0].events, stats[0].checksum)
 
+        with zipfile.ZipFile(work / 'seq.zip', 'w', zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+            for p in folder.iterdir():
+                z.write(p, p.name)
+        ros1bag.write_ros1_bag(work / 'seq.bag', seq, events_per_message=10_000)
+
+        def parse_zip() -> None:
+            for _ in ecd.iter_events(work / 'seq.zip'):
+                pass
+
+        def conv_ros1() -> None:
+            stats.append(convert.convert(work / 'seq.bag', work / f'bag{next(runs)}'))
+
         sub = seq.events[:min(n, 1_000_000)]
         stream = eventpacket.encode_evt3(sub)
         words = stream.view('<u2')
@@ -105,12 +119,16 @@ def main() -> None:
                 dec.decode(part.view(np.uint8))
 
         s_parse = timed(parse, args.repeats)
+        s_zip = timed(parse_zip, args.repeats)
         s_conv = timed(conv, args.repeats)
+        s_ros1 = timed(conv_ros1, args.repeats)
         s_read = timed(read_back, args.repeats)
         s_evt3 = timed(evt3, args.repeats)
         print(f'parse events.txt   {n / s_parse / 1e6:6.2f} M lines/s  ({s_parse:.2f} s)')
+        print(f'parse .zip member  {n / s_zip / 1e6:6.2f} M lines/s  ({s_zip:.2f} s, streamed)')
         print(f'convert to MCAP    {n / s_conv / 1e6:6.2f} M events/s ({s_conv:.2f} s, '
               f'{stats[0].packets} packets)  target >= 2')
+        print(f'ROS 1 bag -> MCAP  {n / s_ros1 / 1e6:6.2f} M events/s ({s_ros1:.2f} s)')
         print(f'read bag + decode  {n / s_read / 1e6:6.2f} M events/s ({s_read:.2f} s)')
         print(f'evt3 decode        {len(sub) / s_evt3 / 1e6:6.2f} M events/s '
               f'({stream.size / len(sub):.2f} B/event)')
