@@ -340,13 +340,18 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
     bags._check_target(dst)
     source = open_source(src, sensor_size=sensor_size, trajectory=trajectory,
                          time_unit=time_unit)
-    if on_source is not None:
-        on_source(source)
     checksum = EventChecksum()
     n_packets = 0
     first_t: int | None = None
     last_t: int | None = None
-    with source.closer, bags.BagWriter(dst, storage=storage) as writer:
+    try:
+        if on_source is not None:
+            on_source(source)
+        writer_cm = bags.BagWriter(dst, storage=storage)
+    except BaseException:
+        source.closer.close()
+        raise
+    with source.closer, writer_cm as writer:
         batches = source.events()
         first = next((ev for ev in batches if len(ev)), EventArray.empty())
         t_start = int(first.t[0]) if len(first) else None
