@@ -15,7 +15,7 @@ from hrn_vo_ros.cli.main import main as hrn_vo
 from hrn_vo_ros.core.events import EventArray, EventChecksum
 from hrn_vo_ros.core.playback import play, PlaybackConfig, PlaybackSchedule
 from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
-from hrn_vo_ros.errors import ConfigError
+from hrn_vo_ros.errors import ConfigError, DecodeError
 from hrn_vo_ros.io import bags, convert, ecd
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -194,6 +194,34 @@ def test_reliable_option_reaches_reliable_subscribers(
         int(want['packets']), timeout=60, reliable=True)  # type: ignore[call-overload]
     assert player.returncode == 0, player.stderr[-2000:]
     assert got['missing'] == [] and got['checksum'] == want['checksum']
+
+
+@pytest.mark.ros
+def test_topics_of_unknown_types_are_skipped(tmp_path: Path) -> None:
+    import rclpy
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+
+    from hrn_vo_ros.nodes.bag_player import BagPlayer
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    ts.register(get_types_from_msg('int32 a\n', 'hrn_test_msgs/msg/Foo'))
+    with Writer(tmp_path / 'bag', version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        foo = w.add_connection('/foo', 'hrn_test_msgs/msg/Foo', typestore=ts)
+        imu = w.add_connection('/imu', 'sensor_msgs/msg/Imu', typestore=ts)
+        w.write(foo, 1, ts.serialize_cdr(ts.types['hrn_test_msgs/msg/Foo'](a=1),
+                                         'hrn_test_msgs/msg/Foo'))
+        w.write(imu, 2, bags.imu_cdr_batch(np.array([2]), np.zeros((1, 3)), np.zeros((1, 3)),
+                                           frame_id='imu')[0])
+    rclpy.init()
+    try:
+        node = BagPlayer(PlaybackConfig(bag=str(tmp_path / 'bag'), rate=100.0))
+        assert node.play() == {'/imu': 1}
+        node.destroy_node()
+        with pytest.raises(DecodeError, match='hrn_test_msgs'):
+            BagPlayer(PlaybackConfig(bag=str(tmp_path / 'bag'), topics=('/foo',)))
+    finally:
+        rclpy.try_shutdown()
 
 
 @pytest.mark.ros

@@ -91,12 +91,20 @@ class BagPlayer(Node):
         if missing:
             raise BagError(f'{config.bag} has no topic(s) {", ".join(missing)}; it has '
                            f'{", ".join(sorted(conns))}')
-        self.topics = list(config.topics) or sorted(conns)
-        self.pubs = {t: self.create_publisher(ros_msgs.message_class(conns[t].msgtype), t,
-                                              qos_profile(conns[t], keep_all=config.max_rate,
-                                                          reliable=config.reliable
-                                                          or config.max_rate))
-                     for t in self.topics}
+        self.topics: list[str] = []
+        self.pubs: dict[str, Any] = {}
+        for t in list(config.topics) or sorted(conns):
+            try:
+                cls = ros_msgs.message_class(conns[t].msgtype)
+            except HrnVoError as err:
+                if config.topics:  # asked for explicitly
+                    raise
+                self.get_logger().warning(f'skipping {t}: {err}')
+                continue
+            self.topics.append(t)
+            self.pubs[t] = self.create_publisher(
+                cls, t, qos_profile(conns[t], keep_all=config.max_rate,
+                                    reliable=config.reliable or config.max_rate))
         self.waited_for = [t for t in self.topics if conns[t].msgtype in EVENT_TYPES] \
             or self.topics
         self.clock_pub = self.create_publisher(Clock, '/clock', 10) if config.clock else None
