@@ -167,7 +167,7 @@ class _RotationMotion:
 
     def __init__(self, rng: np.random.Generator, seconds: float, speed: float) -> None:
         deg = np.pi / 180.0
-        ramp = (1.0 * speed, 7.0 * speed, 0.6)
+        ramp = (1.0 * speed, 9.0 * speed, 0.6)
         self.limits = (20 * deg * rng.uniform(0.85, 1.0), 20 * deg * rng.uniform(0.85, 1.0),
                        50 * deg * rng.uniform(0.85, 1.0))
         self.angles = [_Smooth(rng, seconds, f_lo=0.1, f_hi=0.4, ramp=ramp) for _ in range(3)]
@@ -354,7 +354,7 @@ def shapes_texture(rng: np.random.Generator, *, half_extent: float, texel: float
     kinds = ('poly', 'poly', 'star', 'ellipse', 'ellipse', 'rect')
     for gx, gy in ((a, b) for a in centres for b in centres):
         kind = kinds[int(rng.integers(len(kinds)))]
-        size = float(rng.uniform(0.03, 0.09))
+        size = float(rng.uniform(0.03, 0.08))
         cx, cy = np.array([gx, gy]) + rng.uniform(-0.4, 0.4, 2) * cell
         value = float(rng.choice([rng.uniform(0.06, 0.15), rng.uniform(0.15, 0.45)]))
         _paint(img, rng, x0, y0, texel, float(cx), float(cy), kind, size, value)
@@ -464,7 +464,7 @@ def scene_for(kind: str, seed: int, seconds: float,
         motion: Motion
         if kind == 'rotation':
             motion = _RotationMotion(rng, seconds, cfg.speed_scale)
-            texture = shapes_texture(rng, half_extent=2.0, texel=0.0025, density=4.2,
+            texture = shapes_texture(rng, half_extent=2.0, texel=0.0025, density=6.5,
                                      blur_m=0.6 * footprint)
         else:
             motion = _TranslationMotion(rng, seconds, cfg.speed_scale)
