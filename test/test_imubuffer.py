@@ -38,3 +38,12 @@ def test_bad_samples_are_refused() -> None:
     with pytest.raises(DatasetError, match='does not increase'):
         buf.add(10, np.zeros(3))
     np.testing.assert_array_equal(buf.delta(0, 100), np.zeros(3))
+
+
+def test_frames_after_the_last_sample_are_clamped() -> None:
+    buf = GyroBuffer()
+    for k in range(5):
+        buf.add(k * 10, np.array([0.0, 0.0, 1e9]))
+    np.testing.assert_allclose(buf.delta(25, 200), [0, 0, 15.0])   # clamped at 40
+    buf.trim(100)
+    np.testing.assert_array_equal(buf.delta(100, 200), np.zeros(3))

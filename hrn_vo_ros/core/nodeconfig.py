@@ -55,9 +55,9 @@ class ResonatorNodeConfig:
                       hi=2**31 - 1, read_only=True)
     imu_buffer_samples: int = param(20000, 'Bound of the gyro buffer, samples (imu.enabled)',
                                     lo=4, hi=10_000_000, read_only=True)
-    imu_timeout_s: float = param(0.5, 'Wall time without IMU after which frames waiting for '
-                                 'IMU samples are processed with what has arrived', lo=0.0,
-                                 hi=3600.0)
+    imu_timeout_s: float = param(0.5, 'Wall time a frame waits for IMU samples covering it; '
+                                 'then it is processed with what has arrived (end of the IMU '
+                                 'stream)', lo=0.0, hi=3600.0)
     max_pending_frames: int = param(200, 'Frames held while waiting for IMU samples that cover '
                                     'them; beyond this the oldest is processed anyway',
                                     lo=1, hi=100000, read_only=True)

@@ -24,7 +24,6 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from hrn_vo_ros.errors import HrnVoError
-from hrn_vo_ros.io import ros_msgs
 
 EVENTS_TOPIC = '/event_camera/events'
 IMU_TOPIC = '/imu'
@@ -72,9 +71,9 @@ def graph_ros_args(params_file: Path | None, *, imu: bool, overrides: dict[str, 
                    events_topic: str = EVENTS_TOPIC, imu_topic: str = IMU_TOPIC
                    ) -> dict[str, list[str]]:
     """The arguments of packetizer and resonator, wired as the launch file wires them."""
-    pk = ros_args(params_file, {'events_reliable': True},
+    pk = ros_args(params_file, {'events_reliable': True, 'diagnostics_period_s': 0.25},
                   {'~/events': events_topic})
-    rs_params = {'imu.enabled': imu, **overrides}
+    rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, **overrides}
     rs = ros_args(params_file, rs_params, {'~/frames': FRAMES_TOPIC, '~/imu': imu_topic})
     return {'packetizer_node': pk, 'resonator_node': rs}
 
@@ -173,12 +172,136 @@ class Monitor:
         self.node.destroy_node()
 
 
-def diag_status(msg: DiagnosticArray) -> dict[str, str]:
-    """Key/values of a diagnostics message (re-exported for tools)."""
-    return ros_msgs.diagnostic_values(msg)
+def init_ros() -> bool:
+    """``rclpy.init`` unless already initialised; True if this call initialised it."""
+    if rclpy.ok():
+        return False
+    rclpy.init()
+    return True
 
 
-def init_ros() -> None:
-    """``rclpy.init`` unless already initialised (the monitor needs a context)."""
-    if not rclpy.ok():
-        rclpy.init()
+@dataclass(frozen=True)
+class GraphResult:
+    """What went through the graph: packets in, frames made, estimates recorded, wall time."""
+
+    packets: int
+    packets_in: int
+    frames: int
+    estimates: int
+    seconds: float
+    diagnostics: dict[str, dict[str, str]]
+
+
+def player_argv(python: str, bag: Path, rate: float) -> list[str]:
+    """The bag player (issue 5's ``bag_player``): RELIABLE, after the packetizer subscribed.
+
+    ``rate`` 0 plays at ``max_rate`` (KEEP_ALL writers paced by the subscribers).
+    """
+    params: dict[str, object] = {'bag': str(bag), 'reliable': True, 'wait_for_subscribers': 1}
+    params.update({'max_rate': True} if rate <= 0 else {'rate': float(rate)})
+    return [python, '-m', 'hrn_vo_ros.nodes.bag_player', *ros_args(None, params)]
+
+
+def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bool
+                      ) -> tuple[dict[str, object], dict[str, object]]:
+    """The parameters ``hrn-vo run`` derives from the dataset, so the graph computes the same.
+
+    Sensor size from the dataset, the resonator's frame size from the packetizer's, the IMU
+    focal length (when ``imu.focal_px`` is 0) and the odometry focal length from ``calib.txt``
+    divided by the downsampling factor.
+
+    Returns:
+        ``(packetizer, resonator)`` parameter overrides.
+    """
+    from hrn_vo_ros.io.ecd import read_calib, read_sensor_size
+    from hrn_vo_ros.io.yamlconfig import load_configs
+
+    pk: dict[str, object] = {}
+    rs: dict[str, object] = {'imu.enabled': imu}
+    if dataset is None:
+        return pk, rs
+    width, height = read_sensor_size(dataset)
+    pk = {'sensor_width': width, 'sensor_height': height}
+    pcfg, rcfg = load_configs(params_file, packetizer=pk, resonator=rs)
+    rs.update(width=pcfg.width, height=pcfg.height)
+    focal = read_calib(dataset).fx / pcfg.downsample
+    rs['odometry.focal_length_px'] = focal
+    if imu and not rcfg.imu.focal_px:
+        rs['imu.focal_px'] = focal
+    return pk, rs
+
+
+def run_graph(bag: Path, out_bag: Path, log_dir: Path, *, params_file: Path | None,
+              dataset: Path | None = None, imu: bool = False, rate: float = 1.0,
+              timeout: float = 600.0, settle_s: float = 3.0) -> GraphResult:
+    """Replay ``bag`` through packetizer → resonator, record the outputs into ``out_bag``.
+
+    Raises:
+        GraphError: if a node dies, the graph does not connect, or frames go missing.
+    """
+    from hrn_vo_ros.io.bags import open_bag
+
+    reader = open_bag(bag)
+    try:
+        packets = sum(c.msgcount for c in reader.connections if c.topic == EVENTS_TOPIC)
+    finally:
+        reader.close()
+    pk_over, rs_over = dataset_overrides(dataset, params_file, imu=imu)
+    args = graph_ros_args(params_file, imu=imu, overrides=rs_over)
+    args['packetizer_node'] += [a for k, v in pk_over.items() for a in ('-p', f'{k}:={v}')]
+    topics = [f'{k}:{v}' for k, v in RECORDED.items()]
+    owned = init_ros()
+    graph, mon = Graph(log_dir), Monitor()
+    t0 = time.monotonic()
+    try:
+        graph.start_module('bag_recorder', 'bag_recorder',
+                           ros_args(None, {'output': str(out_bag), 'topics': topics,
+                                                 'diagnostics_period_s': 0.25}))
+        graph.start_module('resonator_node', 'resonator_node', args['resonator_node'])
+        graph.start_module('packetizer_node', 'packetizer_node', args['packetizer_node'])
+        # Writers must have matched their readers (not just be known to the graph), or the
+        # first frames of a volatile topic are lost.
+        mon.wait(lambda: mon.value('packetizer_node', 'frames_subscribers', 0) > 0
+                 and mon.value('resonator_node', 'output_subscribers', 0) > 0,
+                 60.0, 'the nodes to connect', graph)
+        player = graph.start('bag_player', player_argv(graph.python, bag, rate))
+        mon.wait(lambda: player.proc.poll() is not None, timeout, 'the bag player', graph)
+        if player.proc.returncode != 0:
+            raise GraphError(f'the bag player failed (exit {player.proc.returncode}); log '
+                             f'{player.log}:\n{player.log.read_text(errors="replace")[-2000:]}')
+        graph.nodes.remove(player)
+        done = _settled(mon, graph, packets, settle_s, timeout)
+        diags = dict(mon.diags)
+    finally:
+        codes = graph.stop()
+        mon.close()
+        if owned:
+            rclpy.try_shutdown()
+    bad = {k: c for k, c in codes.items() if c not in (0, -2)}
+    if bad:
+        raise GraphError(f'node processes exited with {bad}; logs in {log_dir}')
+    return GraphResult(packets, done[0], done[1], done[2], time.monotonic() - t0, diags)
+
+
+def _settled(mon: Monitor, graph: Graph, packets: int, settle_s: float,
+             timeout: float) -> tuple[int, int, int]:
+    """Wait until every frame the packetizer made was recorded and nothing moves any more."""
+    def counts() -> tuple[int, int, int]:
+        return (mon.value('packetizer_node', 'packets_in'),
+                mon.value('packetizer_node', 'frames_out'),
+                mon.value('bag_recorder', 'recorded ' + READOUT_TOPIC, 0))
+    last, since = counts(), time.monotonic()
+
+    def stable() -> bool:
+        nonlocal last, since
+        now = counts()
+        if now != last:
+            last, since = now, time.monotonic()
+        complete = now[0] == packets and now[2] >= now[1] >= 0
+        return complete or (time.monotonic() - since > settle_s + 2.0 and now[1] >= 0)
+    mon.wait(stable, timeout, 'the graph to drain', graph)
+    if last[0] != packets or last[2] != last[1]:
+        raise GraphError(f'frames went missing: {packets} packets in the bag, '
+                         f'{last[0]} received by the packetizer, {last[1]} frames made, '
+                         f'{last[2]} estimates recorded; diagnostics: {mon.diags}')
+    return last

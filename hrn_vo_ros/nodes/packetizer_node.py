@@ -94,7 +94,8 @@ class PacketizerNode(Node):
     def _on_timer(self) -> None:
         extra: list[tuple[str, object]] = [
             ('frame_rate_hz', f'{self.stats.rate("frames_out"):.1f}'),
-            ('pending_events', self._packetizer.pending)]
+            ('pending_events', self._packetizer.pending),
+            ('frames_subscribers', self._pub.get_subscription_count())]
         publish_diagnostics(self, self._diag, self.stats, extra)
 
 

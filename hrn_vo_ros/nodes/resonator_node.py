@@ -1,8 +1,9 @@
 """``resonator_node``: binary event frames in, odometry out (the HRN as an odometry source).
 
 Subscribes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, RELIABLE) and, when the resonator's
-``imu.enabled`` is true, ``~/imu`` (``sensor_msgs/Imu``, sensor-data QoS; frames wait, bounded,
-until a gyro sample at or after their time arrived). Publishes, stamped with the frame time:
+``imu.enabled`` is true, ``~/imu`` (``sensor_msgs/Imu``, best effort depth 1000; frames wait,
+bounded, until a gyro sample at or after their time arrived). Publishes, stamped with the frame
+time:
 
 * ``~/readout`` — raw h, v, r [, z] as ``sensor_msgs/JointState`` (io/ros_msgs.py);
 * ``~/pose`` (PoseStamped) and ``~/odom`` (nav_msgs/Odometry with covariance) in
@@ -27,7 +28,6 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
@@ -59,8 +59,7 @@ class ResonatorNode(Node):
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._last_t: int | None = None
         self._prev_frame_t: int | None = None
-        self._pending: deque[tuple[int, np.ndarray]] = deque()
-        self._last_imu_wall = time.monotonic()
+        self._pending: deque[tuple[int, np.ndarray, float]] = deque()
         self._last_image_wall = 0.0
         self._confidence: dict[str, float] = {}
         self._gyro = GyroBuffer(np.reshape(cfg.imu.camera_from_imu, (3, 3)),
@@ -75,7 +74,7 @@ class ResonatorNode(Node):
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_subscription(Image, '~/frames', self._on_frame, qos(opts.frames_depth))
         if cfg.imu.enabled:
-            self.create_subscription(Imu, '~/imu', self._on_imu, qos_profile_sensor_data)
+            self.create_subscription(Imu, '~/imu', self._on_imu, qos(1000, reliable=False))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
         self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
                                f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
@@ -106,7 +105,7 @@ class ResonatorNode(Node):
         if not cfg.imu.enabled:
             self._process(t_ns, image, None)
             return
-        self._pending.append((t_ns, image))
+        self._pending.append((t_ns, image, time.monotonic()))
         self._drain(force=False)
 
     def _on_imu(self, msg: Imu) -> None:
@@ -117,7 +116,6 @@ class ResonatorNode(Node):
         except HrnVoError as err:
             self._reject('imu', err)
             return
-        self._last_imu_wall = time.monotonic()
         self._drain(force=False)
 
     def _drain(self, *, force: bool) -> None:
@@ -125,9 +123,13 @@ class ResonatorNode(Node):
         limit = self._opts.config.max_pending_frames
         while self._pending and (force or len(self._pending) > limit
                                  or self._gyro.covers(self._pending[0][0])):
-            t_ns, image = self._pending.popleft()
+            t_ns, image, _ = self._pending.popleft()
             prev = self._prev_frame_t
-            delta = None if prev is None else self._gyro.delta(prev, t_ns)
+            try:
+                delta = None if prev is None else self._gyro.delta(prev, t_ns)
+            except HrnVoError as err:
+                self._reject('imu', err)
+                delta = None
             self._process(t_ns, image, delta)
             self._gyro.trim(t_ns)
 
@@ -171,12 +173,14 @@ class ResonatorNode(Node):
             ros_msgs.float_image_to_mono8(self._hrn.egocentric_map_image(), t_ns, frame))
 
     def _on_timer(self) -> None:
-        if self._pending and time.monotonic() - self._last_imu_wall > \
+        if self._pending and time.monotonic() - self._pending[0][2] > \
                 self._opts.config.imu_timeout_s:
-            self._drain(force=True)
+            self._drain(force=True)  # the IMU stopped (end of a bag): do not hold frames
         extra: list[tuple[str, object]] = [
             ('frame_rate_hz', f'{self.stats.rate("estimates_out"):.1f}'),
-            ('pending_frames', len(self._pending)), ('gyro_samples', len(self._gyro))]
+            ('pending_frames', len(self._pending)), ('gyro_samples', len(self._gyro)),
+            ('output_subscribers', min(p.get_subscription_count() for p in (
+                self._pub_readout, self._pub_pose, self._pub_odom)))]
         extra += [(f'confidence_{k}', f'{v:.3f}') for k, v in sorted(self._confidence.items())]
         extra += self._extra_diagnostics()
         publish_diagnostics(self, self._diag, self.stats, extra)
