@@ -5,11 +5,13 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 import math
+from pathlib import Path
 
 import pytest
 import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+import yaml
 
 from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.nodeconfig import PacketizerNodeConfig, ResonatorNodeConfig
@@ -124,4 +126,46 @@ def test_node_configs_declare_together_without_clashes(ros: None) -> None:
     assert declare_config(node, PacketizerNodeConfig).config == PacketizerNodeConfig()
     assert math.isinf(node.describe_parameter('log_throttle_s').floating_point_range[0]
                       .to_value) is False
+    node.destroy_node()
+
+
+def _flat(d: dict, prefix: str = '') -> set[str]:
+    out: set[str] = set()
+    for k, v in d.items():
+        out |= _flat(v, f'{prefix}{k}.') if isinstance(v, dict) else {prefix + k}
+    return out
+
+
+CONFIGS = sorted((Path(__file__).resolve().parents[1] / 'config').glob('*.yaml'))
+
+
+@pytest.mark.parametrize('path', CONFIGS, ids=[p.stem for p in CONFIGS])
+def test_yaml_keys_are_the_dataclass_fields(path: Path) -> None:
+    from hrn_vo_ros.core.configbase import flat_keys
+    from hrn_vo_ros.core.frames import PacketizerConfig
+    from hrn_vo_ros.core.hrn import ResonatorConfig
+
+    data = yaml.safe_load(path.read_text())
+    for node, algo, opts in (('packetizer_node', PacketizerConfig, PacketizerNodeConfig),
+                             ('resonator_node', ResonatorConfig, ResonatorNodeConfig)):
+        keys = _flat(data[node]['ros__parameters'])
+        assert flat_keys(algo) <= keys, f'{node} lacks {sorted(flat_keys(algo) - keys)}'
+        extra = keys - flat_keys(algo) - flat_keys(opts)
+        assert not extra, f'{node}: unknown keys {sorted(extra)}'
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('path', CONFIGS, ids=[p.stem for p in CONFIGS])
+def test_params_file_declares_the_same_configs_as_yamlconfig(ros: None, path: Path) -> None:
+    from hrn_vo_ros.core.frames import PacketizerConfig
+    from hrn_vo_ros.core.hrn import ResonatorConfig
+    from hrn_vo_ros.io.yamlconfig import load_configs
+
+    want_pk, want_rs = load_configs(path)
+    args = ['--ros-args', '--params-file', str(path)]
+    node = Node('packetizer_node', cli_args=args)
+    assert declare_config(node, PacketizerConfig).config == want_pk
+    node.destroy_node()
+    node = Node('resonator_node', cli_args=args)
+    assert declare_config(node, ResonatorConfig).config == want_rs
     node.destroy_node()
