@@ -22,10 +22,12 @@ import yaml
 
 from hrn_vo_ros.cli.main import echo
 from hrn_vo_ros.cli.progress import Progress
+from hrn_vo_ros.core.backends import BackendConfig, BACKENDS, make_backend, SpikingDiagnostics
+from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.evaluation import EstimateSeries
 from hrn_vo_ros.core.frames import Packetizer
-from hrn_vo_ros.core.hrn import HRN
 from hrn_vo_ros.core.imu import GyroIntegrator
+from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError
 from hrn_vo_ros.io import ecd
 from hrn_vo_ros.io.estimates import write_estimates
@@ -45,6 +47,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',
                    help='override a resonator parameter (dotted, YAML value), e.g. '
                         'cleanup.gamma=0.6; packetizer ones with a packetizer. prefix')
+    p.add_argument('--backend', choices=tuple(BACKENDS), default='float',
+                   help='resonator backend: float (reference) or spiking (phasor neurons under '
+                        'Loihi constraints; tune with --set spiking.KEY=VALUE, docs/spiking.md)')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     p.set_defaults(func=run)
 
@@ -76,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
         raise DatasetError('dataset not found (a folder or zip with events.txt)', path=dataset)
     width, height = ecd.read_sensor_size(dataset)
     pk_over, rs_over = parse_overrides(args.overrides)
+    sp_over = {k.removeprefix('spiking.'): rs_over.pop(k) for k in list(rs_over)
+               if k.startswith('spiking.')}
+    backend = BackendConfig(args.backend, from_dict(SpikingConfig, sp_over, source='--set'))
     pk_over = {'sensor_width': width, 'sensor_height': height, **pk_over}
     if args.imu:
         rs_over['imu.enabled'] = True
@@ -93,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
         gyro = GyroIntegrator(ecd.read_imu(dataset), rot)
     packetizer = Packetizer(pcfg)
-    hrn = HRN(rcfg, rng=np.random.default_rng(args.seed))
+    hrn = make_backend(rcfg, rng=np.random.default_rng(args.seed), backend=backend)
     rows: list[tuple[int, float, float, float, float]] = []
     prev_angle: np.ndarray | None = None
     total = ecd.event_count(dataset)
@@ -118,6 +126,11 @@ def run(args: argparse.Namespace) -> int:
     est = EstimateSeries(t=np.array([r[0] for r in rows], dtype=np.int64), h=arr[:, 0],
                          v=arr[:, 1], r=arr[:, 2], z=arr[:, 3] if rcfg.scale.enabled else None)
     write_estimates(args.out, est)
+    if isinstance(hrn, SpikingDiagnostics):
+        acc = hrn.account_summary()
+        echo('spiking, per iteration (last frame): ' + ', '.join(
+            f'{k} {acc[k]:.4g}' for k in ('spikes', 'synops', 'neuron_updates', 'energy_uJ',
+                                          'time_us') if k in acc))
     echo(f'{len(rows)} frames in {elapsed:.2f} s ({len(rows) / max(elapsed, 1e-9):.0f} '
          f'frames/s) -> {args.out}')
     return 0
