@@ -263,3 +263,12 @@ def test_spiking_imu_prediction_shifts_the_state_spikes_like_the_float_backend()
         out[name] = np.array([e.h, e.v])
     np.testing.assert_allclose(out['spiking'], out['float'], atol=0.5)
     assert np.all(np.abs(out['spiking'] - moved[:2]) < 1.0), out
+
+
+def test_drive_readout_uses_the_similarity_neurons() -> None:
+    cfg = from_dict(ResonatorConfig, {'map': {'learn': False}, 'readout': {'source': 'drive'}})
+    traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [(4.0, -3.0, 0.0, 0.0)] * 30)
+    b = SpikingHRN(cfg, rng=np.random.default_rng(1))
+    est = track(b, traj)
+    assert set(b._spiking_engine.drive) == {'h', 'v', 'r'}
+    assert np.all(np.abs(est[-1] - (4.0, -3.0, 0.0)) <= (0.5, 0.5, 0.03)), est[-1]

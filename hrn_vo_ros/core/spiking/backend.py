@@ -97,8 +97,14 @@ class SpikingEngine(_FastEngine):
         return sp.decode()
 
     def update(self, name: str, x: Complex, a: Complex) -> Complex:
-        sp, _ = self.cleanups[name].step(a, self.spikes.get(name))
+        cl = self.cleanups[name]
+        sp, _ = cl.step(a, self.spikes.get(name))
         self.spikes[name] = sp
+        # The similarity neurons' states, normalised like the float engine's drive readout.
+        if cl.last_input is not None and cl.last_similarity is not None:
+            bound = self.col_norm[name] * float(np.linalg.norm(cl.last_input.decode()))
+            self.drive[name] = (cl.last_similarity / bound if bound > 0
+                                else np.zeros_like(cl.last_similarity))
         return sp.decode()
 
     def shift(self, name: str, delta: float) -> None:

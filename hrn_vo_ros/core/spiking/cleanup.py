@@ -67,6 +67,7 @@ class SpikingCleanup:
     p_needs_max: bool = False
     counts: dict[str, LayerCounts] = field(init=False)
     last_input: Spikes | None = field(init=False, default=None)
+    last_similarity: Real | None = field(init=False, default=None)
     _sim: ComplexSynapses = field(init=False)
     _out: ComplexSynapses = field(init=False)
     _mix: ComplexSynapses = field(init=False)
@@ -99,6 +100,7 @@ class SpikingCleanup:
             u: (n,); returns (K,) float64 (>= 0 for the ReLU).
         """
         a = self._sim.drive(u, self.counts['similarity']).real
+        self.last_similarity = a
         c = self.counts['threshold']
         if self.p is not None:
             if self.p_needs_max:                 # K-input max (WTA) circuit: K neurons
