@@ -45,8 +45,8 @@ def test_single_registration(scene: np.ndarray, cx: float, cy: float, ang: float
 
 
 def test_tracks_a_smooth_motion_with_map_updates(scene: np.ndarray) -> None:
-    n = 200
-    tt = np.arange(n) / 50
+    n = 120
+    tt = np.arange(n) / 30
     cx, cy, ang = 25 * np.sin(tt), 15 * np.sin(0.7 * tt), 0.5 * np.sin(0.9 * tt)
     images = np.stack([view(scene, cx[k], cy[k], ang[k]) for k in range(n)])
     ests = run_baseline(np.arange(n) * 20_000_000, images, BaselineConfig(block_iterations=20))
