@@ -465,7 +465,7 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
     else:
         calib_mask = train & (t >= split - 10.0)
         cal_name = 'last 10 s of the training part'
-        if float(t[train][0]) > split - 10.0 if np.any(train) else False:
+        if np.any(train) and float(t[train][0]) > split - 10.0:
             warnings.append('the training part is shorter than 10 s: all of it is used')
     n_cal = int(calib_mask.sum())
     if n_cal < MIN_SAMPLES:
