@@ -42,6 +42,7 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from hrn_vo_ros.cli.run import parse_overrides  # noqa: E402
 from hrn_vo_ros.core.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.configbase import from_dict  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries, evaluate  # noqa: E402
@@ -51,6 +52,7 @@ from hrn_vo_ros.core.sequence import Trajectory  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
+from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / 'docs' / 'spiking.md'
@@ -147,9 +149,20 @@ def main() -> int:
     ap.add_argument('--cache', type=Path, default=None, help='cache simulated frames here')
     ap.add_argument('--synthetic', action='store_true',
                     help='known-motion synthetic frames instead of simulated sequences')
+    ap.add_argument('--config', type=Path, default=None,
+                    help='resonator parameter file (config/*.yaml) instead of the defaults')
+    ap.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',
+                    help='resonator override (cleanup.gamma=0.6) or spiking one '
+                         '(spiking.steps_per_cycle=16)')
     args = ap.parse_args()
-    cfg = from_dict(ResonatorConfig, SYNTH_CFG) if args.synthetic else ResonatorConfig()
-    spk = BackendConfig('spiking', SpikingConfig())
+    _, rs_over = parse_overrides(args.overrides)
+    sp_over = {k.removeprefix('spiking.'): rs_over.pop(k) for k in list(rs_over)
+               if k.startswith('spiking.')}
+    if args.synthetic:
+        rs_over = {**{f'{a}.{b}': v for a, d in SYNTH_CFG.items() for b, v in d.items()},
+                   **rs_over}
+    cfg = load_configs(args.config, resonator=rs_over)[1]
+    spk = BackendConfig('spiking', from_dict(SpikingConfig, sp_over))
     flt = BackendConfig('float')
     print(f'resonator: {cfg.width}x{cfg.height}, nonlinearity {cfg.cleanup.nonlinearity}, '
           f'gamma {cfg.cleanup.gamma}; spiking: {spk.spiking}')
