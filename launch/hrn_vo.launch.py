@@ -51,7 +51,8 @@ def _nodes(context, *args, **kwargs):
     if bag:
         rate = LaunchConfiguration('rate').perform(context)
         actions.append(Node(package='hrn_vo_ros', executable='bag_player', name='bag_player',
-                            arguments=[bag, '--rate', rate], output='screen'))
+                            parameters=[{'bag': bag, 'rate': float(rate),
+                                         'wait_for_subscribers': 1}], output='screen'))
     return actions
 
 

@@ -126,3 +126,14 @@ def test_installed_resonator_node_starts_with_a_params_file() -> None:
         proc.terminate()
         out, _ = proc.communicate(timeout=30)
     assert [ros_msgs.stamp_to_ns(m.header.stamp) for m in got] == [1, 2, 3], out
+
+
+def test_launch_file_compiles_and_names_the_installed_executables() -> None:
+    import py_compile
+
+    path = ROOT / 'launch' / 'hrn_vo.launch.py'
+    py_compile.compile(str(path), doraise=True)
+    text = path.read_text()
+    setup = (ROOT / 'setup.py').read_text()
+    for exe in ('packetizer_node', 'resonator_node', 'bag_player'):
+        assert f"executable='{exe}'" in text and f"'{exe} = " in setup

@@ -42,7 +42,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help='output folder (default ./hrn_vo_demo; must not hold a previous demo)')
     p.add_argument('--kind', choices=sorted(KIND_CONFIGS), default='rotation',
                    help='motion kind: simulated sequence and evaluation protocol')
-    p.add_argument('--seconds', type=float, default=10.0, help='simulated duration (s)')
+    p.add_argument('--seconds', type=float, default=20.0, help='simulated duration (s)')
     p.add_argument('--seed', type=int, default=1, help='simulation seed')
     p.add_argument('--rate', type=float, default=1.0,
                    help='replay rate (1 = real time; 0 = as fast as the graph keeps up)')
