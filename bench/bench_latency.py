@@ -71,6 +71,12 @@ def load_packets(bag: Path) -> tuple[list[tuple[int, bytes]], list[int]]:
     return out, counts
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process so far (Linux /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--seconds', type=float, default=20.0)
@@ -146,6 +152,7 @@ def main() -> int:
         stop.set()
         spinner.join()
         diags = dict(mon.diags)
+        cpu = {nd.name: cpu_seconds(nd.proc.pid) for nd in graph.nodes}
     finally:
         graph.stop()
         mon.close()
@@ -164,6 +171,10 @@ def main() -> int:
     print(f'resonator processing per frame: median {rs.get("processing_ms_median")} ms, p99 '
           f'{rs.get("processing_ms_p99")} ms (recent window); packetizer per packet: median '
           f'{diags.get("packetizer_node", {}).get("processing_ms_median")} ms')
+    print('CPU time of the node processes (whole run, incl. start-up): ' + ', '.join(
+        f'{k} {v:.2f} s = {v / max(n, 1) * 1e3:.2f} ms per frame' for k, v in cpu.items())
+        + f'; frame period {args.seconds / max(n, 1) * 1e3:.2f} ms; load average '
+        f'{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores')
     ok = n == int(got.sum()) and med <= 5.0 and p99 <= 20.0
     print(f'targets (no drop, median <= 5 ms, p99 <= 20 ms): {"met" if ok else "NOT met"}')
     return 0

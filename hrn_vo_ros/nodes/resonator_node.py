@@ -64,10 +64,9 @@ class ResonatorNode(Node):
         self._confidence: dict[str, float] = {}
         self._gyro = GyroBuffer(np.reshape(cfg.imu.camera_from_imu, (3, 3)),
                                 max_samples=opts.imu_buffer_samples)
-        reliable = qos(1000)
-        self._pub_readout = self.create_publisher(JointState, '~/readout', reliable)
-        self._pub_pose = self.create_publisher(PoseStamped, '~/pose', reliable)
-        self._pub_odom = self.create_publisher(Odometry, '~/odom', reliable)
+        self._pub_readout = self.create_publisher(JointState, '~/readout', qos(1000))
+        self._pub_pose = self.create_publisher(PoseStamped, '~/pose', qos(1000))
+        self._pub_odom = self.create_publisher(Odometry, '~/odom', qos(1000))
         self._pub_map = self.create_publisher(Image, '~/map_image', 2)
         self._pub_readout_img = self.create_publisher(Image, '~/readout_image', 2)
         self._pub_tf = self.create_publisher(TFMessage, '/tf', 100) if opts.publish_tf else None
@@ -94,9 +93,8 @@ class ResonatorNode(Node):
             return
         cfg = self._algo.config
         if image.shape != (cfg.height, cfg.width):
-            self._reject('size', f'frame of {image.shape[1]}x{image.shape[0]} pixels, expected '
-                         f'{cfg.width}x{cfg.height} (match packetizer downsample and resonator '
-                         'width/height)')
+            self._reject('size', f'frame of {image.shape[::-1]} pixels, expected '
+                         f'{cfg.width}x{cfg.height}: match packetizer and resonator sizes')
             return
         if self._last_t is not None and t_ns < self._last_t:
             self._reject('time_backwards', f'frame at {t_ns} ns after one at {self._last_t} ns')
