@@ -373,6 +373,11 @@ class _FastEngine:
         self._full = {k: b.period is not None and len(b.values) == len(b.phases)
                       and np.array_equal(b.values, np.arange(len(b.values)) - len(b.values) // 2)
                       for k, b in self.books.items()}
+        # np.roll(x, n//2) and np.roll(p, -(n//2)) as gathers (entries -n/2..n/2-1 vs FFT order)
+        self._perm_dec = {k: np.roll(np.arange(len(b.phases)), len(b.phases) // 2)
+                          for k, b in self.books.items()}
+        self._perm_enc = {k: np.roll(np.arange(len(b.phases)), -(len(b.phases) // 2))
+                          for k, b in self.books.items()}
         self.has_z = 'z' in self.books
         self._sw_key: Complex | None = None
         self._sw: Complex = np.zeros(0, np.complex128)
@@ -382,7 +387,10 @@ class _FastEngine:
         self.m0 = self.m
 
     def encode(self, canvas: Real) -> Complex:
-        return self.lp.encode_image_lp(canvas)
+        S = self.lp.encode_image_lp(canvas)
+        if self.lp.weighted and self.lp.last_lp_image is not None:
+            self._sw_key, self._sw = S, self.lp.weight_image(self.lp.last_lp_image)
+        return S
 
     def start(self, canvas: Real, rng: np.random.Generator) -> None:
         g = self.g
@@ -403,16 +411,16 @@ class _FastEngine:
 
     def book_decode(self, name: str, a: Complex) -> Complex:
         """``X† a`` for factor ``name``. Shapes: a (n,) → (K,)."""
-        n = a.shape[0]
         if self._full[name]:
-            return np.asarray(np.roll(sfft.ifft(a, workers=1) * n, n // 2), np.complex128)
+            out = sfft.ifft(a, workers=1)[self._perm_dec[name]]
+            out *= a.shape[0]
+            return np.asarray(out, np.complex128)
         return np.asarray((self.XH[name] * a[None, :]).sum(axis=1), np.complex128)
 
     def book_encode(self, name: str, p: Real) -> Complex:
         """``X p`` for factor ``name``. Shapes: p (K,) → (n,)."""
         if self._full[name]:
-            n = p.shape[0]
-            return np.asarray(sfft.fft(np.roll(p, -(n // 2)), workers=1), np.complex128)
+            return np.asarray(sfft.fft(p[self._perm_enc[name]], workers=1), np.complex128)
         return np.asarray((self.X[name] * p[None, :]).sum(axis=1), np.complex128)
 
     def _clean(self, name: str, a: Complex) -> Complex:

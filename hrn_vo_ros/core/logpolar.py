@@ -210,6 +210,7 @@ class LogPolarTransform:
         self.lp_shape = (g.n_rho, g.n_theta)
         self.cart_shape = (g.canvas_height, g.canvas_width)
         self.weighted = g.ring_weight != 0.0
+        self.last_lp_image: NDArray[np.floating] | None = None
         self.w = ring_weights(g)
         wrow = np.repeat(self.w, g.n_theta)
         self._Twc = sp.diags(wrow).tocsr() @ self._Tc if self.weighted else self._Tc
@@ -221,7 +222,12 @@ class LogPolarTransform:
             canvas: (H_c, W_c) real; returns (n_rho, n_theta) complex128.
         """
         lp = (self.T @ canvas.ravel()).reshape(self.lp_shape)
+        self.last_lp_image = lp
         return np.asarray(sfft.fft2(lp, workers=self.workers), np.complex128)
+
+    def weight_image(self, lp: NDArray[np.floating]) -> Complex:
+        """``D_w Λ s`` from the log-polar image ``T · canvas`` (one FFT instead of two)."""
+        return np.asarray(sfft.fft2(lp * self.w[:, None], workers=self.workers), np.complex128)
 
     def forward(self, x: Complex) -> Complex:
         """Λ x. Shapes: x (H_c, W_c) → (n_rho, n_theta)."""

@@ -1,0 +1,114 @@
+"""HRN speed, single thread, measured side by side in one run (issue 4 speed acceptance).
+
+Prints: the median ms per HRN step of the fast path (DFT codebooks, 96x72, h/v/r, the
+shapes_rotation config), the dense reference path at full 96x72 (complex64 matrices) and their
+ratio, and the packetizing rate. Wall-clock and CPU (process) times are both shown: the machine
+is shared, and CPU time is what one core spends. Targets: fast <= 1.5 ms, dense >= 30x slower,
+packetizing >= 20 M events/s.
+
+    scripts/run.sh python bench/bench_hrn_speed.py [--dense-steps 8] [--steps 400]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ[_var] = '1'
+
+import argparse  # noqa: E402
+from pathlib import Path  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
+from hrn_vo_ros.core.events import EventArray  # noqa: E402
+from hrn_vo_ros.core.frames import Packetizer, PacketizerConfig  # noqa: E402
+from hrn_vo_ros.core.hrn import HRN  # noqa: E402
+from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def moving_frames(n: int, rng: np.random.Generator) -> np.ndarray:
+    """Binary 96x72 frames of a random dot-and-blob scene panning and rolling slowly."""
+    from scipy import ndimage
+    scene = ndimage.gaussian_filter(rng.random((300, 300)), 3.0)
+    edges = np.abs(ndimage.sobel(scene > np.median(scene), 0)) > 0
+    out = np.zeros((n, 72, 96), np.uint8)
+    yy, xx = np.mgrid[0:72, 0:96]
+    for i in range(n):
+        a = 0.003 * i
+        x = np.cos(a) * (xx - 47.5) - np.sin(a) * (yy - 35.5) + 150 + 0.2 * i
+        y = np.sin(a) * (xx - 47.5) + np.cos(a) * (yy - 35.5) + 150
+        out[i] = edges[y.astype(int) % 300, x.astype(int) % 300]
+    return out
+
+
+def time_steps(hrn: HRN, frames: np.ndarray) -> tuple[float, float]:
+    """Median wall and CPU ms per step (after one warm-up step)."""
+    hrn.step(frames[0], 0)
+    wall, cpu = [], []
+    for i, f in enumerate(frames[1:], start=1):
+        w0, c0 = time.perf_counter(), time.process_time()
+        hrn.step(f, i)
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    return 1e3 * float(np.median(wall)), 1e3 * float(np.median(cpu))
+
+
+def main() -> None:
+    """Run the three measurements and print figures and ratios."""
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument('--steps', type=int, default=400, help='fast-path steps')
+    ap.add_argument('--dense-steps', type=int, default=8, help='dense-path steps')
+    ap.add_argument('--config', type=Path, default=ROOT / 'config/shapes_rotation.yaml')
+    args = ap.parse_args()
+    rng = np.random.default_rng(0)
+    frames = moving_frames(args.steps + 1, rng)
+    _, cfg = load_configs(args.config, resonator={'map.block_iterations': 10})
+    print(f'config {args.config.name}: {cfg.width}x{cfg.height}, factors h/v/r, '
+          f'log-polar {cfg.logpolar.n_theta}x{cfg.logpolar.n_rho}, single thread')
+
+    fast = HRN(cfg, rng=np.random.default_rng(1))
+    f_wall, f_cpu = time_steps(fast, frames)
+    print(f'fast path   : {f_wall:8.3f} ms/step wall, {f_cpu:8.3f} ms/step CPU '
+          f'(median of {args.steps}; target <= 1.5 ms)')
+
+    t0 = time.perf_counter()
+    dcfg = load_configs(args.config, resonator={'map.block_iterations': 10, 'path': 'dense'})[1]
+    dense = HRN(dcfg, rng=np.random.default_rng(1), dense_dtype=np.complex64)
+    print(f'dense build : {time.perf_counter() - t0:6.1f} s (Λ, Λ\', Φ as complex64 matrices)')
+    d_wall, d_cpu = time_steps(dense, frames[:args.dense_steps + 1])
+    # Same steps again on the fast path, interleaved in time with the dense ones.
+    f2_wall, f2_cpu = time_steps(HRN(cfg, rng=np.random.default_rng(1)),
+                                 frames[:args.steps // 4 + 1])
+    print(f'dense path  : {d_wall:8.1f} ms/step wall, {d_cpu:8.1f} ms/step CPU '
+          f'(median of {args.dense_steps})')
+    print(f'ratio dense/fast: {d_wall / min(f_wall, f2_wall):6.0f}x wall, '
+          f'{d_cpu / min(f_cpu, f2_cpu):6.0f}x CPU (target >= 30x)')
+    del dense
+
+    n = 20_000_000
+    t = np.cumsum(rng.integers(0, 6, n)).astype(np.int64)
+    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                rng.integers(0, 2, n))
+    pk = Packetizer(PacketizerConfig())
+    rates = []
+    for _ in range(3):
+        pk.reset()
+        w0, c0 = time.perf_counter(), time.process_time()
+        frames_out = 0
+        for i in range(0, n, 200_000):
+            frames_out += len(pk.push(ev[i:i + 200_000]))
+        rates.append((n / (time.perf_counter() - w0), n / (time.process_time() - c0)))
+    best = max(rates)
+    print(f'packetizing : {best[0] / 1e6:6.1f} M events/s wall, {best[1] / 1e6:6.1f} M events/s '
+          f'CPU ({frames_out} frames of 2000 from {n / 1e6:.0f} M events, best of 3; '
+          'target >= 20 M/s)')
+
+
+if __name__ == '__main__':
+    main()
