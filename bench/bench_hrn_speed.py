@@ -80,7 +80,7 @@ def main() -> None:
     t0 = time.perf_counter()
     dcfg = load_configs(args.config, resonator={'map.block_iterations': 10, 'path': 'dense'})[1]
     dense = HRN(dcfg, rng=np.random.default_rng(1), dense_dtype=np.complex64)
-    print(f'dense build : {time.perf_counter() - t0:6.1f} s (Λ, Λ\', Φ as complex64 matrices)')
+    print(f"dense build : {time.perf_counter() - t0:6.1f} s (Λ, Λ', Φ as complex64 matrices)")
     d_wall, d_cpu = time_steps(dense, frames[:args.dense_steps + 1])
     # Same steps again on the fast path, interleaved in time with the dense ones.
     f2_wall, f2_cpu = time_steps(HRN(cfg, rng=np.random.default_rng(1)),
