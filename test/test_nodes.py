@@ -181,3 +181,36 @@ def test_imu_frames_wait_for_gyro_and_nan_imu_is_rejected() -> None:
     finally:
         g.close()
         rclpy.try_shutdown()
+
+
+def test_tf_and_images_when_enabled() -> None:
+    from tf2_msgs.msg import TFMessage
+
+    rclpy.init()
+    try:
+        node = ResonatorNode(parameter_overrides=[
+            Parameter('publish_tf', value=True),
+            Parameter('odometry.child_frame', value='camera'),
+            Parameter('camera_frame_id', value='cam_optical')])
+        probe = Node('tf_probe')
+        got: dict[str, list] = {'tf': [], 'map': [], 'img': []}
+        probe.create_subscription(TFMessage, '/tf', got['tf'].append, 100)
+        probe.create_subscription(Image, '/resonator_node/map_image', got['map'].append, 10)
+        probe.create_subscription(Image, '/resonator_node/readout_image', got['img'].append, 10)
+        pub = probe.create_publisher(Image, '/resonator_node/frames', qos(10))
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        ex.add_node(probe)
+        end = time.monotonic() + 10
+        while time.monotonic() < end and not pub.get_subscription_count():
+            ex.spin_once(timeout_sec=0.05)
+        pub.publish(ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 7, 'c'))
+        while time.monotonic() < end and not (got['tf'] and got['map'] and got['img']):
+            ex.spin_once(timeout_sec=0.05)
+        tf = got['tf'][0].transforms[0]
+        assert (tf.header.frame_id, tf.child_frame_id) == ('odom', 'cam_optical')
+        assert got['map'][0].encoding == 'mono8' and got['img'][0].width == 96
+        node.destroy_node()
+        probe.destroy_node()
+    finally:
+        rclpy.try_shutdown()
