@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from hrn_vo_ros.nodes.graph import run_graph
 
     out: Path = args.out
-    if (out / 'graph_bag').exists() or (out / 'input_bag').exists():
+    if any((out / d).exists() for d in ('sequence', 'input_bag', 'graph_bag')):
         raise ConfigError(f'{out} holds a previous demo: pass another --out or delete it')
     out.mkdir(parents=True, exist_ok=True)
     config = args.config or config_dir() / KIND_CONFIGS[args.kind]
@@ -74,9 +74,10 @@ def run(args: argparse.Namespace) -> int:
     bag = convert(dataset, out / 'input_bag')
     echo(f'[demo] replaying {bag} through the node graph (logs in {out / "logs"})')
     result = run_graph(bag, out / 'graph_bag', out / 'logs', params_file=config,
-                         dataset=dataset, imu=args.imu, rate=args.rate, timeout=args.timeout)
-    echo(f'[demo] {result.frames} frames in, {result.estimates} estimates recorded, '
-         f'{result.seconds:.1f} s')
+                       dataset=dataset, imu=args.imu, rate=args.rate, timeout=args.timeout)
+    echo(f'[demo] {result.packets_in}/{result.packets} event packets received, '
+         f'{result.frames} frames made, {result.estimates} estimates recorded (none lost), '
+         f'graph ran {result.seconds:.1f} s')
     est_csv = write_est_csv(out / 'graph_bag', out / 'est.csv')
     table = evaluate(dataset, est_csv, args.kind, out)
     echo(table)
@@ -89,11 +90,14 @@ def run(args: argparse.Namespace) -> int:
 
 def simulate(args: argparse.Namespace, folder: Path) -> Path:
     """Simulate ``args.kind`` and write it in the Event Camera Dataset layout."""
+    from hrn_vo_ros.cli.progress import Progress
     from hrn_vo_ros.core.simulator import simulate as sim
     from hrn_vo_ros.io.ecd import write_sequence
 
-    echo(f'[demo] simulating {args.seconds:g} s of {args.kind} (seed {args.seed}) ...')
-    seq = sim(args.kind, args.seconds, seed=args.seed)
+    with Progress(args.seconds * 1000, f'[demo] simulating {args.kind} (seed {args.seed}, '
+                  'sequence ms)') as bar:
+        seq = sim(args.kind, args.seconds, seed=args.seed,
+                  progress=lambda s: bar.advance(1000 * s))
     write_sequence(folder, seq)
     echo(f'[demo] {len(seq.events)} events -> {folder}')
     return folder
@@ -104,7 +108,8 @@ def convert(dataset: Path, dst: Path) -> Path:
     from hrn_vo_ros.io.convert import convert as conv
 
     stats = conv(dataset, dst)
-    echo(f'[demo] converted to {dst}: {stats}')
+    echo(f'[demo] converted to {dst}: {stats.events} events in {stats.packets} packets, '
+         f'{stats.imu} IMU samples, {stats.poses} ground-truth poses')
     return dst
 
 
