@@ -31,6 +31,7 @@ FRAMES_TOPIC = '/packetizer_node/frames'
 READOUT_TOPIC = '/resonator_node/readout'
 ODOM_TOPIC = '/resonator_node/odom'
 POSE_TOPIC = '/resonator_node/pose'
+FRAMES_DEPTH = 10000
 RECORDED = {
     READOUT_TOPIC: 'sensor_msgs/msg/JointState',
     ODOM_TOPIC: 'nav_msgs/msg/Odometry',
@@ -71,9 +72,13 @@ def graph_ros_args(params_file: Path | None, *, imu: bool, overrides: dict[str, 
                    events_topic: str = EVENTS_TOPIC, imu_topic: str = IMU_TOPIC
                    ) -> dict[str, list[str]]:
     """The arguments of packetizer and resonator, wired as the launch file wires them."""
-    pk = ros_args(params_file, {'events_reliable': True, 'diagnostics_period_s': 0.25},
+    # A deep frame queue (~70 MB at most) absorbs the resonator falling behind for a while on a
+    # loaded machine, so replay loses no frame; live use keeps the node default.
+    pk = ros_args(params_file, {'events_reliable': True, 'diagnostics_period_s': 0.25,
+                                'frames_depth': FRAMES_DEPTH},
                   {'~/events': events_topic})
-    rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, **overrides}
+    rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, 'frames_depth': FRAMES_DEPTH,
+                 **overrides}
     rs = ros_args(params_file, rs_params, {'~/frames': FRAMES_TOPIC, '~/imu': imu_topic})
     return {'packetizer_node': pk, 'resonator_node': rs}
 
