@@ -190,6 +190,18 @@ def test_empty_frames_repeat_the_pose_without_iterating() -> None:
     assert e1.valid and not e2.valid and (e2.h, e2.r, e2.iteration) == (e1.h, e1.r, 1)
 
 
+def test_noise_frames_above_max_fill_are_skipped() -> None:
+    """A still camera fills fixed-count packets with noise: such frames must not become the map."""
+    rng = np.random.default_rng(0)
+    noise = (rng.random((72, 96)) < 0.45).astype(np.uint8)
+    hrn = make()
+    e = hrn.step(noise, 0)
+    assert not e.valid and e.iteration == 0
+    frame = event_frame(random_scene(rng), (0, 0, 0, 0), rng)
+    assert hrn.step(frame, 1).valid
+    assert make({'max_fill': 1.0}).step(noise, 0).valid
+
+
 def test_bad_inputs_and_configs() -> None:
     hrn = make()
     with pytest.raises(TrackingError, match=r'expected \(72, 96\)'):

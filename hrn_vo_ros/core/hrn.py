@@ -204,6 +204,9 @@ class ResonatorConfig:
     height: int = param(72, 'event frame height in pixels', lo=2, hi=4096, read_only=True)
     path: str = param('fast', 'fast (FFT, DFT codebooks) or dense (reference matrices)',
                       choices=('fast', 'dense'), read_only=True)
+    max_fill: float = param(0.3, 'frames with a larger fraction of pixels on are noise (a '
+                            'still camera fills fixed-count packets with noise) and are skipped '
+                            'like empty ones; 1 keeps all', lo=0.0, hi=1.0)
     codebook: CodebookConfig = nested(CodebookConfig, 'codebooks and canvas')
     logpolar: LogPolarConfig = nested(LogPolarConfig, 'log-polar grid')
     cleanup: CleanupConfig = nested(CleanupConfig, 'cleanup nonlinearity and update speed')
@@ -768,7 +771,8 @@ class HRN:
                 the prediction step (paper Eq. 10) when given.
 
         Returns:
-            The pose readout; an empty frame repeats the previous pose with ``valid=False``.
+            The pose readout; an empty frame, or one with more than ``max_fill`` of its pixels
+            on (noise), repeats the previous pose with ``valid=False``.
 
         Shapes:
             image: (height, width); gyro_delta: (3,).
@@ -784,7 +788,8 @@ class HRN:
         img = np.asarray(image, dtype=np.float64)
         if not np.all(np.isfinite(img)):
             raise TrackingError('event frame contains non-finite values')
-        if not img.any():
+        on = int(np.count_nonzero(img))
+        if on == 0 or on > c.max_fill * img.size:
             return self._repeat(t_ns)
         canvas = self._place(img)
         eng = self._engine
