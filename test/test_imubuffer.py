@@ -11,22 +11,23 @@ from hrn_vo_ros.core.sequence import ImuData
 from hrn_vo_ros.errors import DatasetError
 
 
-def test_streaming_increments_equal_batch(rng: np.random.Generator) -> None:
-    t_imu = np.cumsum(rng.integers(800_000, 1_200_000, 400)).astype(np.int64)
+@pytest.mark.parametrize('rot', [np.eye(3), np.array([[0.0, 1, 0], [-1, 0, 0], [0, 0, 1]])])
+def test_streaming_angles_equal_batch_bit_for_bit(rng: np.random.Generator,
+                                                  rot: np.ndarray) -> None:
+    t_imu = 10**12 + np.cumsum(rng.integers(800_000, 1_200_000, 400)).astype(np.int64)
     gyro = rng.normal(size=(400, 3))
-    rot = np.array([[0.0, 1, 0], [-1, 0, 0], [0, 0, 1]])
     frames = np.sort(rng.integers(t_imu[0] - 5_000_000, t_imu[-1] + 5_000_000, 120))
-    want = GyroIntegrator(ImuData(t_imu, np.zeros_like(gyro), gyro), rot).deltas(frames)
+    batch = GyroIntegrator(ImuData(t_imu, np.zeros_like(gyro), gyro), rot)
     buf = GyroBuffer(rot, max_samples=100)
-    got, j, prev = [np.zeros(3)], 0, int(frames[0])
-    for t in frames[1:]:
+    got, want, j = [], [], 0
+    for t in frames:
         while j < len(t_imu) and not buf.covers(int(t)):
             buf.add(int(t_imu[j]), gyro[j])
             j += 1
-        got.append(buf.delta(prev, int(t)))
+        got.append(buf.angle_at(int(t)))
+        want.append(batch.angle_at(int(t)))        # per frame, as hrn-vo run calls it
         buf.trim(int(t))
-        prev = int(t)
-    np.testing.assert_allclose(np.array(got), want, atol=1e-12)
+    np.testing.assert_array_equal(np.array(got), np.array(want))
     assert len(buf) < 100
 
 
@@ -45,5 +46,6 @@ def test_frames_after_the_last_sample_are_clamped() -> None:
     for k in range(5):
         buf.add(k * 10, np.array([0.0, 0.0, 1e9]))
     np.testing.assert_allclose(buf.delta(25, 200), [0, 0, 15.0])   # clamped at 40
+    np.testing.assert_allclose(buf.angle_at(-5), [0, 0, 0])         # clamped at 0
     buf.trim(100)
     np.testing.assert_array_equal(buf.delta(100, 200), np.zeros(3))

@@ -24,6 +24,9 @@ class PacketizerNodeConfig:
     events_reliable: bool = param(False, 'Subscribe to events RELIABLE (lossless replay) '
                                   'instead of BEST_EFFORT as camera drivers publish',
                                   read_only=True)
+    events_keep_all: bool = param(False, 'KEEP_ALL event subscription: with events_reliable, a '
+                                  'KEEP_ALL player (max rate) is paced by this node',
+                                  read_only=True)
     frames_depth: int = param(1000, 'Queue depth of the published frames (RELIABLE)',
                               lo=1, hi=100000, read_only=True)
     diagnostics_period_s: float = param(1.0, 'Period of the diagnostics message, seconds',
@@ -55,9 +58,11 @@ class ResonatorNodeConfig:
                       hi=2**31 - 1, read_only=True)
     imu_buffer_samples: int = param(20000, 'Bound of the gyro buffer, samples (imu.enabled)',
                                     lo=4, hi=10_000_000, read_only=True)
-    imu_timeout_s: float = param(0.5, 'Wall time a frame waits for IMU samples covering it; '
-                                 'then it is processed with what has arrived (end of the IMU '
-                                 'stream)', lo=0.0, hi=3600.0)
+    imu_depth: int = param(1000, 'Queue depth of the IMU subscription (BEST_EFFORT), samples',
+                           lo=1, hi=1_000_000, read_only=True)
+    imu_timeout_s: float = param(0.5, 'When no IMU sample arrived for this long (wall time), '
+                                 'frames waiting for IMU are processed with what has arrived '
+                                 '(end of the IMU stream)', lo=0.0, hi=3600.0)
     max_pending_frames: int = param(200, 'Frames held while waiting for IMU samples that cover '
                                     'them; beyond this the oldest is processed anyway',
                                     lo=1, hi=100000, read_only=True)

@@ -16,9 +16,10 @@ from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ros_msgs
 
 
-def qos(depth: int, *, reliable: bool = True) -> QoSProfile:
-    """KEEP_LAST ``depth``, VOLATILE, RELIABLE or BEST_EFFORT."""
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+def qos(depth: int, *, reliable: bool = True, keep_all: bool = False) -> QoSProfile:
+    """KEEP_LAST ``depth`` (or KEEP_ALL), VOLATILE, RELIABLE or BEST_EFFORT."""
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
+                      depth=depth,
                       reliability=ReliabilityPolicy.RELIABLE if reliable
                       else ReliabilityPolicy.BEST_EFFORT,
                       durability=DurabilityPolicy.VOLATILE)

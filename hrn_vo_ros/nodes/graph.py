@@ -69,16 +69,16 @@ def ros_args(params_file: Path | None = None, params: dict[str, object] | None =
 
 
 def graph_ros_args(params_file: Path | None, *, imu: bool, overrides: dict[str, object],
-                   events_topic: str = EVENTS_TOPIC, imu_topic: str = IMU_TOPIC
-                   ) -> dict[str, list[str]]:
+                   events_topic: str = EVENTS_TOPIC, imu_topic: str = IMU_TOPIC,
+                   paced: bool = False) -> dict[str, list[str]]:
     """The arguments of packetizer and resonator, wired as the launch file wires them."""
     # A deep frame queue (~70 MB at most) absorbs the resonator falling behind for a while on a
     # loaded machine, so replay loses no frame; live use keeps the node default.
     pk = ros_args(params_file, {'events_reliable': True, 'diagnostics_period_s': 0.25,
-                                'frames_depth': FRAMES_DEPTH},
+                                'frames_depth': FRAMES_DEPTH, 'events_keep_all': paced},
                   {'~/events': events_topic})
     rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, 'frames_depth': FRAMES_DEPTH,
-                 **overrides}
+                 'max_pending_frames': FRAMES_DEPTH, 'imu_depth': 50 * FRAMES_DEPTH, **overrides}
     rs = ros_args(params_file, rs_params, {'~/frames': FRAMES_TOPIC, '~/imu': imu_topic})
     return {'packetizer_node': pk, 'resonator_node': rs}
 
@@ -252,7 +252,7 @@ def run_graph(bag: Path, out_bag: Path, log_dir: Path, *, params_file: Path | No
     finally:
         reader.close()
     pk_over, rs_over = dataset_overrides(dataset, params_file, imu=imu)
-    args = graph_ros_args(params_file, imu=imu, overrides=rs_over)
+    args = graph_ros_args(params_file, imu=imu, overrides=rs_over, paced=rate <= 0)
     args['packetizer_node'] += [a for k, v in pk_over.items() for a in ('-p', f'{k}:={v}')]
     topics = [f'{k}:{v}' for k, v in RECORDED.items()]
     owned = init_ros()

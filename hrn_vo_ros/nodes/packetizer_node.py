@@ -47,7 +47,8 @@ class PacketizerNode(Node):
         self._pub = self.create_publisher(Image, '~/frames', qos(opts.frames_depth))
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_subscription(EventPacket, '~/events', self._on_events,
-                                 qos(opts.events_depth, reliable=opts.events_reliable))
+                                 qos(opts.events_depth, reliable=opts.events_reliable,
+                                     keep_all=opts.events_keep_all))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
         cfg = self._algo.config
         self.get_logger().info(

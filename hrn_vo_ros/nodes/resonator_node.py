@@ -58,9 +58,9 @@ class ResonatorNode(Node):
         self.stats = NodeStats()
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._last_t: int | None = None
-        self._prev_frame_t: int | None = None
+        self._prev_angle: np.ndarray | None = None
         self._pending: deque[tuple[int, np.ndarray, float]] = deque()
-        self._last_image_wall = 0.0
+        self._last_image_wall = self._last_imu_wall = 0.0
         self._confidence: dict[str, float] = {}
         self._gyro = GyroBuffer(np.reshape(cfg.imu.camera_from_imu, (3, 3)),
                                 max_samples=opts.imu_buffer_samples)
@@ -73,7 +73,8 @@ class ResonatorNode(Node):
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_subscription(Image, '~/frames', self._on_frame, qos(opts.frames_depth))
         if cfg.imu.enabled:
-            self.create_subscription(Imu, '~/imu', self._on_imu, qos(1000, reliable=False))
+            self.create_subscription(Imu, '~/imu', self._on_imu,
+                                     qos(opts.imu_depth, reliable=False))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
         self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
                                f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
@@ -114,6 +115,7 @@ class ResonatorNode(Node):
         except HrnVoError as err:
             self._reject('imu', err)
             return
+        self._last_imu_wall = time.monotonic()
         self._drain(force=False)
 
     def _drain(self, *, force: bool) -> None:
@@ -122,18 +124,14 @@ class ResonatorNode(Node):
         while self._pending and (force or len(self._pending) > limit
                                  or self._gyro.covers(self._pending[0][0])):
             t_ns, image, _ = self._pending.popleft()
-            prev = self._prev_frame_t
-            try:
-                delta = None if prev is None else self._gyro.delta(prev, t_ns)
-            except HrnVoError as err:
-                self._reject('imu', err)
-                delta = None
+            angle = self._gyro.angle_at(t_ns)     # as hrn-vo run: differences of angles
+            prev, self._prev_angle = self._prev_angle, angle
+            delta = None if prev is None else angle - prev
             self._process(t_ns, image, delta)
             self._gyro.trim(t_ns)
 
     def _process(self, t_ns: int, image: np.ndarray, gyro_delta: np.ndarray | None) -> None:
         t0 = time.perf_counter()
-        self._prev_frame_t = t_ns
         try:
             est = self._hrn.step(image, t_ns, gyro_delta=gyro_delta)
         except HrnVoError as err:
@@ -171,8 +169,8 @@ class ResonatorNode(Node):
             ros_msgs.float_image_to_mono8(self._hrn.egocentric_map_image(), t_ns, frame))
 
     def _on_timer(self) -> None:
-        if self._pending and time.monotonic() - self._pending[0][2] > \
-                self._opts.config.imu_timeout_s:
+        now, timeout = time.monotonic(), self._opts.config.imu_timeout_s
+        if self._pending and min(now - self._pending[0][2], now - self._last_imu_wall) > timeout:
             self._drain(force=True)  # the IMU stopped (end of a bag): do not hold frames
         extra: list[tuple[str, object]] = [
             ('frame_rate_hz', f'{self.stats.rate("estimates_out"):.1f}'),
