@@ -58,8 +58,10 @@ class ResonatorNodeConfig:
                       hi=2**31 - 1, read_only=True)
     imu_buffer_samples: int = param(20000, 'Bound of the gyro buffer, samples (imu.enabled)',
                                     lo=4, hi=10_000_000, read_only=True)
-    imu_depth: int = param(1000, 'Queue depth of the IMU subscription (BEST_EFFORT), samples',
-                           lo=1, hi=1_000_000, read_only=True)
+    imu_depth: int = param(1000, 'Queue depth of the IMU subscription, samples', lo=1,
+                           hi=1_000_000, read_only=True)
+    imu_reliable: bool = param(False, 'Subscribe to the IMU RELIABLE and KEEP_ALL (lossless '
+                               'max-rate replay; drivers publish best effort)', read_only=True)
     imu_timeout_s: float = param(0.5, 'When no IMU sample arrived for this long (wall time), '
                                  'frames waiting for IMU are processed with what has arrived '
                                  '(end of the IMU stream)', lo=0.0, hi=3600.0)

@@ -73,8 +73,8 @@ class ResonatorNode(Node):
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_subscription(Image, '~/frames', self._on_frame, qos(opts.frames_depth))
         if cfg.imu.enabled:
-            self.create_subscription(Imu, '~/imu', self._on_imu,
-                                     qos(opts.imu_depth, reliable=False))
+            self.create_subscription(Imu, '~/imu', self._on_imu, qos(
+                opts.imu_depth, reliable=opts.imu_reliable, keep_all=opts.imu_reliable))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
         self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
                                f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
