@@ -39,6 +39,18 @@ transform), and the roll is about the image centre, i.e. the optical axis, which
 hand-held camera rolls. Model B (map in log-polar, Eq. 8 literally) rotates about the map origin
 and couples roll into the translation readout; it is not implemented.
 
+Choices beyond the paper (each a config switch; measured on simulator seeds 1-3):
+
+* ``cleanup.init = identity``: the first map is the first frame, so the true initial transform
+  is the identity; random initial states (the paper, ``init = random``) locked onto spurious
+  fixed points in 3 of 4 static trials at 96x72.
+* ``logpolar.ring_weight``: the roll/scale correlation weights log-polar rings by
+  ``(ρ/r_max)^a`` (``D_w S ⊙ (Λ_w(m̂ ⊙ ĥ ⊙ v̂))*``); with equal weights the over-sampled centre
+  (half the rings lie within 10 px) dominates and the roll was lost within a second.
+* ``max_fill``: frames with too many pixels on are noise (a still camera) and are skipped, so
+  that noise never becomes the map.
+* ``readout.source = drive`` (off by default) and ``cleanup.whiten`` (off) are experiments.
+
 Two paths with the same equations:
 
 * ``path='fast'`` (DFT codebooks only): vectors are 2-D spectra; Λ = FFT ∘ sparse resampling ∘
