@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
                         wall = runner(case, ds, est)
                     plot = (work / 'plots' / f'{est.stem}.png') if args.plots else None
                     res = evaluate(case, ds, est, plot)
-                except RuntimeError as err:
+                except Exception as err:
                     print(f'  {method}: FAILED {err}', flush=True)
                     res, wall = {'metrics': {}, 'warnings': [str(err)[:200]]}, float('nan')
                 metrics = res.get('metrics', {})
