@@ -38,6 +38,8 @@ Output conventions (as the HRN's, see :mod:`hrn_vo_ros.core.hrn`): content moved
 gives ``h = -a`` (camera position in the map, x right / y down); a content rotation by +b (from
 +x towards +y) gives ``r = -b`` (right-handed camera roll), unwrapped; ``z`` is the log zoom of
 the content (positive when the camera approaches). No IMU fusion (``gyro_delta`` is ignored).
+Empty frames and frames with more than ``max_fill`` of their pixels on (noise of a still camera)
+repeat the previous pose with ``valid=False``, as in the HRN.
 """
 
 from __future__ import annotations
@@ -78,6 +80,8 @@ class BaselineConfig:
     max_log_scale: float = param(0.4, 'largest |z| accepted per frame', lo=0.01, hi=3.0)
     n_theta: int = param(180, 'log-polar angle samples over [0, pi)', lo=16, hi=4096)
     n_rho: int = param(64, 'log-polar radius samples', lo=8, hi=4096)
+    max_fill: float = param(0.3, 'frames with a larger fraction of pixels on are noise (a still '
+                            'camera) and are skipped, as in the HRN', lo=0.0, hi=1.0)
     blur: float = param(1.0, 'Gaussian std (pixels) applied to each event frame first (0: none)',
                         lo=0.0, hi=10.0)
     local_steps: int = param(3, 'angles tried on each side of the previous roll', lo=0,
@@ -269,7 +273,8 @@ class PhaseCorrelationBaseline:
         img = np.asarray(image, dtype=np.float64)
         if not np.all(np.isfinite(img)):
             raise TrackingError('event frame contains non-finite values')
-        if not img.any():
+        on = int(np.count_nonzero(img))
+        if on == 0 or on > c.max_fill * img.size:
             return self._emit(t_ns, valid=False)
         if c.blur > 0:
             img = ndimage.gaussian_filter(img, c.blur, mode='constant')
@@ -340,7 +345,7 @@ def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
     return BaselineConfig(width=rcfg.width, height=rcfg.height, mu1=rcfg.map.mu1,
                           mu2=rcfg.map.mu2, block_iterations=rcfg.map.block_iterations,
                           learn_map=rcfg.map.learn, scale=rcfg.scale.enabled,
-                          max_log_scale=rcfg.scale.max_log_scale)
+                          max_log_scale=rcfg.scale.max_log_scale, max_fill=rcfg.max_fill)
 
 
 def run_baseline(t_ns: NDArray[np.int64], images: NDArray[np.generic],
