@@ -62,3 +62,6 @@ def test_bad_frames(scene: np.ndarray) -> None:
         b.step(np.zeros((10, 10)), 0)
     e = b.step(np.zeros((72, 96)), 0)
     assert not e.valid
+    noise = (np.random.default_rng(1).random((72, 96)) < 0.5).astype(np.uint8)
+    assert not b.step(noise, 1).valid  # half the pixels on: a still camera's noise, skipped
+    assert b.step(view(scene, 0, 0, 0), 2).valid
