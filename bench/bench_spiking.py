@@ -150,7 +150,8 @@ def main() -> int:
     ap.add_argument('--synthetic', action='store_true',
                     help='known-motion synthetic frames instead of simulated sequences')
     ap.add_argument('--config', type=Path, default=None,
-                    help='resonator parameter file (config/*.yaml) instead of the defaults')
+                    help='resonator parameter file (default: config/shapes_rotation.yaml for '
+                         'simulated sequences, the core defaults with --synthetic)')
     ap.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',
                     help='resonator override (cleanup.gamma=0.6) or spiking one '
                          '(spiking.steps_per_cycle=16)')
@@ -161,6 +162,8 @@ def main() -> int:
     if args.synthetic:
         rs_over = {**{f'{a}.{b}': v for a, d in SYNTH_CFG.items() for b, v in d.items()},
                    **rs_over}
+    if args.config is None and not args.synthetic:   # the tuned config, as hrn-vo run uses
+        args.config = ROOT / 'config' / 'shapes_rotation.yaml'
     cfg = load_configs(args.config, resonator=rs_over)[1]
     spk = BackendConfig('spiking', from_dict(SpikingConfig, sp_over))
     flt = BackendConfig('float')

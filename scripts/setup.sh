@@ -51,12 +51,21 @@ if [ -x "$VENV/bin/python" ] && [ -f "$STAMPS/mode" ] && [ "$(cat "$STAMPS/mode"
     log "the existing venv was made for mode '$(cat "$STAMPS/mode")': recreating it"
     rm -rf "$VENV"
 fi
+make_venv() {
+    local flags=()
+    [ "$mode" = ros ] && flags=(--system-site-packages)
+    rm -rf "$VENV"
+    "$PY" -m venv "${flags[@]}" "$VENV"
+}
 if [ ! -x "$VENV/bin/python" ]; then
     log "creating the virtual environment"
-    if [ "$mode" = ros ]; then
-        "$PY" -m venv --system-site-packages "$VENV" || die "python3 -m venv failed: apt-get install python3-venv"
-    else
-        "$PY" -m venv "$VENV" || die "python3 -m venv failed: apt-get install python3-venv"
+    if ! make_venv; then
+        # Debian's python3 lacks ensurepip until python3-venv is installed.
+        [ "$(id -u)" = 0 ] || die "python3 -m venv failed: sudo apt-get install python3-venv"
+        log "installing python3-venv with apt"
+        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv \
+            || die "apt-get install python3-venv failed"
+        make_venv || die "python3 -m venv failed even with python3-venv installed"
     fi
 fi
 stamp_set mode "$mode"
