@@ -400,6 +400,10 @@ class _FastEngine:
         self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
         self.m = np.zeros((g.canvas_height, g.canvas_width), np.complex128)
         self.m0 = self.m
+        self._mvh = np.empty_like(self.m)           # m̂ ⊙ v̂ ⊙ ĥ scratch (Λ_w copies it)
+        self._m0_src: Complex | None = None         # the m0 that _m0_scaled = μ2 m0 was made of
+        self._m0_mu2 = 0.0
+        self._m0_scaled = self.m0
 
     def encode(self, canvas: Real) -> Complex:
         S = self.lp.encode_image_lp(canvas)
@@ -435,7 +439,8 @@ class _FastEngine:
     def book_encode(self, name: str, p: Real) -> Complex:
         """``X p`` for factor ``name``. Shapes: p (K,) → (n,)."""
         if self._full[name]:
-            return np.asarray(sfft.fft(p[self._perm_enc[name]], workers=1), np.complex128)
+            return np.asarray(sfft.fft(p[self._perm_enc[name]], workers=1, overwrite_x=True),
+                              np.complex128)
         return np.asarray((self.X[name] * p[None, :]).sum(axis=1), np.complex128)
 
     def _clean(self, name: str, a: Complex) -> Complex:
@@ -477,7 +482,9 @@ class _FastEngine:
         u *= mc                                     # p̂ ⊙ m̂*
         # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂); the roll/scale correlation uses ring-weighted log-polar images
         # (D_w S ⊙ (D_w l̂)*, identity when logpolar.ring_weight = 0).
-        w = self.send('l', self.lp.forward_weighted(m * v[:, None] * h[None, :]))
+        mvh = np.multiply(m, v[:, None], out=self._mvh)
+        mvh *= h[None, :]
+        w = self.send('l', self.lp.forward_weighted(mvh))
         np.conjugate(w, out=w)
         w *= self._weighted_input(S)                # S ⊙ l̂*
         hb, vb, rb, zb = h, v, r, z
@@ -516,7 +523,14 @@ class _FastEngine:
 
     def update_map(self, S: Complex, point: dict[str, float], mu1: float, mu2: float) -> None:
         target = self._to_map(S, point)
-        self.m = mu1 * self.m + mu2 * self.m0 + (1.0 - mu1 - mu2) * target   # Eq. 9
+        # Eq. 9, m = μ1 m + μ2 m0 + (1-μ1-μ2) t, into fresh arrays (the old m may be held)
+        if self._m0_src is not self.m0 or self._m0_mu2 != mu2:   # μ2 m0 is fixed after start()
+            self._m0_src, self._m0_mu2, self._m0_scaled = self.m0, mu2, mu2 * self.m0
+        m = mu1 * self.m
+        m += self._m0_scaled
+        target *= 1.0 - mu1 - mu2
+        m += target
+        self.m = m
 
     def map_image(self, point: dict[str, float] | None) -> Real:
         m = self.m
@@ -798,7 +812,7 @@ class HRN:
                                 f'({c.height}, {c.width}): match the packetizer size to '
                                 'resonator width/height')
         img = np.asarray(image, dtype=np.float64)
-        if not np.all(np.isfinite(img)):
+        if image.dtype.kind not in 'biu' and not np.all(np.isfinite(img)):   # ints are finite
             raise TrackingError('event frame contains non-finite values')
         on = int(np.count_nonzero(img))
         if on == 0 or on > c.max_fill * img.size:

@@ -232,13 +232,15 @@ class LogPolarTransform:
     def forward(self, x: Complex) -> Complex:
         """Λ x. Shapes: x (H_c, W_c) → (n_rho, n_theta)."""
         img = sfft.ifft2(x, workers=self.workers).ravel()
-        out = sfft.fft2((self._Tc @ img).reshape(self.lp_shape), workers=self.workers)
+        out = sfft.fft2((self._Tc @ img).reshape(self.lp_shape), workers=self.workers,
+                         overwrite_x=True)
         return np.asarray(out, np.complex128)
 
     def forward_weighted(self, x: Complex) -> Complex:
         """Λ_w x = fft2_LP(W T · ifft2_C(x)), W = diag(ring weights). Shapes: as forward."""
         img = sfft.ifft2(x, workers=self.workers).ravel()
-        out = sfft.fft2((self._Twc @ img).reshape(self.lp_shape), workers=self.workers)
+        out = sfft.fft2((self._Twc @ img).reshape(self.lp_shape), workers=self.workers,
+                         overwrite_x=True)
         return np.asarray(out, np.complex128)
 
     def weight(self, y: Complex) -> Complex:
@@ -247,12 +249,14 @@ class LogPolarTransform:
             return y
         img = sfft.ifft2(y, workers=self.workers)
         img *= self.w[:, None]
-        return np.asarray(sfft.fft2(img, workers=self.workers), np.complex128)
+        return np.asarray(sfft.fft2(img, workers=self.workers, overwrite_x=True),
+                          np.complex128)
 
     def reverse(self, y: Complex) -> Complex:
         """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
         img = sfft.ifft2(y, workers=self.workers).ravel()
-        out = sfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers)
+        out = sfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers,
+                         overwrite_x=True)
         return np.asarray(out, np.complex128)
 
 
