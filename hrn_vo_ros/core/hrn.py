@@ -393,6 +393,7 @@ class _FastEngine:
                           for k, b in self.books.items()}
         self._perm_enc = {k: np.roll(np.arange(len(b.phases)), -(len(b.phases) // 2))
                           for k, b in self.books.items()}
+        self._jphases = {k: 1j * b.phases for k, b in self.books.items()}
         self.has_z = 'z' in self.books
         self._sw_key: Complex | None = None
         self._sw: Complex = np.zeros(0, np.complex128)
@@ -512,13 +513,13 @@ class _FastEngine:
         self.state[name] = self.state[name] * fhrr.power(self.books[name].phases, delta)
 
     def _to_map(self, S: Complex, point: dict[str, float]) -> Complex:
-        b = self.books
-        q = S * fhrr.power(b['r'].phases, -point['r'])[None, :]
+        jp = self._jphases                          # z0^a = exp((1j φ) a), as fhrr.power
+        q = S * np.exp(jp['r'] * float(-point['r']))[None, :]
         if self.has_z:
-            q *= fhrr.power(b['z'].phases, -point['z'])[:, None]
+            q *= np.exp(jp['z'] * float(-point['z']))[:, None]
         t = self.lp.reverse(q)
-        t *= fhrr.power(b['v'].phases, -point['v'])[:, None]
-        t *= fhrr.power(b['h'].phases, -point['h'])[None, :]
+        t *= np.exp(jp['v'] * float(-point['v']))[:, None]
+        t *= np.exp(jp['h'] * float(-point['h']))[None, :]
         return t
 
     def update_map(self, S: Complex, point: dict[str, float], mu1: float, mu2: float) -> None:
