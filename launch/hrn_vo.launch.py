@@ -16,7 +16,7 @@ Arguments:
     bag: a ROS 2 bag to replay with this package's bag player (empty: none).
     rate: replay rate of the bag player.
 
-Machines without ``launch`` start the same graph with ``hrn-vo demo`` (hrn_vo_ros/nodes/graph.py).
+Machines without ``launch`` start the same graph with ``hrn-vo demo`` (hrn_vo_ros/cli/graph.py).
 """
 
 import os

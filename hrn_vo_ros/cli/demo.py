@@ -60,7 +60,7 @@ def config_dir() -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; prints the errors and where the files are."""
-    from hrn_vo_ros.nodes.graph import run_graph
+    from hrn_vo_ros.cli.graph import run_graph
 
     out: Path = args.out
     if any((out / d).exists() for d in ('sequence', 'input_bag', 'graph_bag')):
@@ -115,10 +115,10 @@ def convert(dataset: Path, dst: Path) -> Path:
 
 def write_est_csv(bag: Path, dst: Path) -> Path:
     """The recorded raw readouts as an estimate CSV (``hrn-vo run`` columns)."""
+    from hrn_vo_ros.cli.graph import READOUT_TOPIC
     from hrn_vo_ros.core.evaluation import EstimateSeries
     from hrn_vo_ros.io.estimates import write_estimates
     from hrn_vo_ros.io.recording import read_readouts
-    from hrn_vo_ros.nodes.graph import READOUT_TOPIC
 
     t, vals = read_readouts(bag, READOUT_TOPIC)
     if len(t) == 0:
