@@ -450,7 +450,7 @@ def _parse_slow(buf: bytes, first_line: int, where: Path, *,
             msg = f'expected 4 columns "t x y p", got {len(parts)}: {_show(raw)}{hint}'
             raise DatasetError(msg, path=where, line=lineno)
         try:
-            t = _time_ns(parts[0].decode('ascii'))
+            t = seconds_to_ns(parts[0].decode('ascii'))
             x, y, p = int(parts[1]), int(parts[2]), int(parts[3])
         except (ValueError, UnicodeDecodeError) as err:
             hint = ' (the file looks truncated)' if truncated else ''
@@ -467,8 +467,14 @@ def _show(raw: bytes) -> str:
     return repr(text if len(text) <= 60 else text[:57] + '...')
 
 
-def _time_ns(tok: str) -> int:
-    """Exact int ns from a decimal seconds string (``12.000001234``, ``3``, ``0.5``)."""
+def seconds_to_ns(tok: str) -> int:
+    """Exact int ns from a decimal seconds string (``12.000001234``, ``3``, ``0.5``).
+
+    The one seconds-text parser of the I/O layer (dataset, estimate and trajectory files).
+
+    Raises:
+        ValueError: for anything but digits with at most 9 decimals, or an int64 overflow.
+    """
     sec, dot, frac = tok.partition('.')
     if not (sec.isascii() and sec.isdigit()) or (frac and not (frac.isascii()
                                                                 and frac.isdigit())):
@@ -511,7 +517,7 @@ def _read_table(src: _Source, name: str, columns: str,
             msg = f'expected {ncol} columns "{columns}", got {len(parts)}: {line[:60]!r}{hint}'
             raise DatasetError(msg, path=where, line=i + 1)
         try:
-            t = _time_ns(parts[0])
+            t = seconds_to_ns(parts[0])
             vals = [float(v) for v in parts[1:]]
         except ValueError as err:
             raise DatasetError(f'malformed line {line[:60]!r}: {err}', path=where,
@@ -544,7 +550,7 @@ def _table_fast(text: str, ncol: int,
     if vals.size != len(lines) * ncol or not np.all(np.isfinite(vals)):
         return None
     try:
-        t = np.array([_time_ns(line.split(None, 1)[0]) for line in lines], np.int64)
+        t = np.array([seconds_to_ns(line.split(None, 1)[0]) for line in lines], np.int64)
     except ValueError:
         return None
     if np.any(t[1:] < t[:-1]):

@@ -21,6 +21,7 @@ import numpy as np
 
 from hrn_vo_ros.core.evaluation import EstimateSeries
 from hrn_vo_ros.errors import DatasetError
+from hrn_vo_ros.io.ecd import seconds_to_ns
 
 REQUIRED = ('t', 'h', 'v', 'r')
 
@@ -43,11 +44,11 @@ def write_estimates(path: Path | str, est: EstimateSeries) -> Path:
 
 
 def _time_ns(tok: str, path: Path, line: int) -> int:
-    sec, _, frac = tok.strip().partition('.')
-    if not sec.isdigit() or (frac and not frac.isdigit()) or len(frac) > 9:
+    try:
+        return seconds_to_ns(tok.strip())
+    except ValueError:
         raise DatasetError(f'bad time {tok!r} (expected seconds >= 0 with up to 9 decimals)',
-                           path=path, line=line)
-    return int(sec) * 1_000_000_000 + int((frac + '000000000')[:9])
+                           path=path, line=line) from None
 
 
 def read_estimates(path: Path | str) -> EstimateSeries:

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.events import EventArray
 from hrn_vo_ros.core.sequence import Trajectory
 from hrn_vo_ros.errors import DatasetError
+from hrn_vo_ros.io.ecd import seconds_to_ns
 
 TimeUnit = Literal['s', 'ms', 'us', 'ns']
 _NS_PER = {'s': 1_000_000_000, 'ms': 1_000_000, 'us': 1_000, 'ns': 1}
@@ -156,7 +157,7 @@ def read_trajectory(path: Path | str) -> Trajectory:
 
 def _seconds_to_ns(tok: str) -> int:
     """Exact ns from decimal seconds text; other notations (``1e9``) via float."""
-    sec, dot, frac = tok.partition('.')
-    if sec.isdigit() and (not frac or frac.isdigit()) and len(frac) <= 9:
-        return int(sec) * 1_000_000_000 + (int(frac.ljust(9, '0')) if frac else 0)
-    return round(float(tok) * 1e9)
+    try:
+        return seconds_to_ns(tok)
+    except ValueError:
+        return round(float(tok) * 1e9)
