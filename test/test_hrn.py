@@ -6,13 +6,16 @@ from hrn_synth import event_frame, random_scene, trajectory
 import numpy as np
 import pytest
 
+from hrn_vo_ros.core import fhrr
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn import (
     cleanup_weights,
     CleanupConfig,
     HRN,
     population_readout,
+    refine_exponent,
     ResonatorConfig,
+    state_gamma,
 )
 from hrn_vo_ros.errors import ConfigError, TrackingError
 
@@ -118,14 +121,16 @@ def test_imu_fusion_helps_on_fast_motion() -> None:
     assert e_fused[2] < np.deg2rad(2.0) and e_fused[0] < 1.0
 
 
-@pytest.mark.parametrize(('scale', 'ring_weight'), [(False, 0.0), (True, 0.0), (False, 1.0),
-                                                   (True, 1.0)])
-def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float) -> None:
+@pytest.mark.parametrize(('scale', 'ring_weight', 'refine'),
+                         [(False, 0.0, False), (True, 0.0, False), (False, 1.0, False),
+                          (True, 1.0, False), (True, 1.0, True)])
+def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refine: bool) -> None:
     """Same equations, same random draws: readouts agree within 1e-4 relative (32x24)."""
     base = {'width': 32, 'height': 24,
             'logpolar': {'n_theta': 32, 'n_rho': 16, 'ring_weight': ring_weight},
             'codebook': {'canvas_width': 36, 'canvas_height': 26},
-            'map': {'block_iterations': 10}, 'scale': {'enabled': scale}}
+            'map': {'block_iterations': 10}, 'scale': {'enabled': scale},
+            'readout': {'refine': refine}}
     fast = make(base, seed=3)
     dense = make({**base, 'path': 'dense'}, seed=3)
     rng = np.random.default_rng(0)
@@ -247,3 +252,30 @@ def test_cleanup_nonlinearities_and_population_readout() -> None:
     assert idx == pytest.approx(-0.5) and peak == 1.0 and spread > 0
     idx2, _, _ = population_readout(sim, 5, False)
     assert 0.0 <= idx2 < 20
+
+
+def test_refine_finds_fractional_exponents_and_removes_pixel_locking() -> None:
+    """The continuous readout of seed^a is a; on sub-pixel motion it beats the population
+    vector of the sharpened state, which is pulled towards whole pixels."""
+    phases = fhrr.dft_phases(64)
+    for a in (3.37, -10.5, 0.02):
+        x = fhrr.power(phases, a)
+        assert abs(refine_exponent(x, phases, round(a), 1.0) - a) < 1e-3
+    traj = np.zeros((120, 4))
+    traj[:, 0] = np.linspace(0.0, 6.0, 120)           # 0.05 px per frame: every fraction
+    base = {'cleanup': {'beta': 20.0}, 'map': {'learn': False}}
+    plain = track(make(base), traj)
+    fine = track(make({**base, 'readout': {'refine': True}}), traj)
+    e_plain = np.median(np.abs(plain[10:, 0] - traj[10:, 0]))
+    e_fine = np.median(np.abs(fine[10:, 0] - traj[10:, 0]))
+    assert e_fine < 0.85 * e_plain, (e_plain, e_fine)
+
+
+def test_imu_gamma_replaces_cleanup_gamma_only_with_the_imu_on() -> None:
+    cfg = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'gamma': 0.3}})
+    assert state_gamma(cfg) == 0.9
+    on = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9},
+                                     'imu': {'gamma': 0.3, 'enabled': True}})
+    assert state_gamma(on) == 0.3
+    unset = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'enabled': True}})
+    assert state_gamma(unset) == 0.9

@@ -35,7 +35,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.estimate import Estimate
-from hrn_vo_ros.core.hrn import _Engine, _FastEngine, cleanup_weights, HRN, ResonatorConfig
+from hrn_vo_ros.core.hrn import (
+    _Engine,
+    _FastEngine,
+    cleanup_weights,
+    HRN,
+    ResonatorConfig,
+    state_gamma,
+)
 from hrn_vo_ros.core.logpolar import Geometry
 from hrn_vo_ros.core.spiking.accounting import cores_for, IterationAccount
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
@@ -71,7 +78,7 @@ class SpikingEngine(_FastEngine):
             return cleanup_weights(a, ccfg)
 
         self.cleanups = {
-            k: SpikingCleanup(self.X[k], scfg, gamma=ccfg.gamma, name=k,
+            k: SpikingCleanup(self.X[k], scfg, gamma=state_gamma(cfg), name=k,
                               p=p_same if same else None,
                               p_needs_max=same and ccfg.nonlinearity == 'exp')
             for k in self.books}
