@@ -131,6 +131,8 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
             'codebook': {'canvas_width': 36, 'canvas_height': 26},
             'map': {'block_iterations': 10}, 'scale': {'enabled': scale},
             'readout': {'refine': refine}}
+    if refine:
+        base['codebook'] = {**base['codebook'], 'kernel_sigma': 0.7}   # type: ignore[dict-item]
     fast = make(base, seed=3)
     dense = make({**base, 'path': 'dense'}, seed=3)
     rng = np.random.default_rng(0)
@@ -279,3 +281,18 @@ def test_imu_gamma_replaces_cleanup_gamma_only_with_the_imu_on() -> None:
     assert state_gamma(on) == 0.3
     unset = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'enabled': True}})
     assert state_gamma(unset) == 0.9
+
+
+def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
+    """The first map is the encoded first frame: one pixel on gives a Gaussian of that std."""
+    hrn = make({'width': 32, 'height': 24, 'logpolar': {'n_theta': 32, 'n_rho': 16},
+                'codebook': {'kernel_sigma': 1.5}})
+    frame = np.zeros((24, 32), np.uint8)
+    frame[10, 20] = 1
+    hrn.step(frame, 0)
+    img = hrn.map_image()
+    assert img.sum() == pytest.approx(1.0, abs=1e-9)
+    yy, xx = np.mgrid[0:24, 0:32]
+    assert np.sum(img * xx) == pytest.approx(20.0, abs=1e-4)
+    assert np.sum(img * yy) == pytest.approx(10.0, abs=1e-4)
+    assert np.sqrt(np.sum(img * (xx - 20.0) ** 2)) == pytest.approx(1.5, abs=0.01)

@@ -60,6 +60,10 @@ Choices beyond the paper (each a config switch; measured on simulator seeds 1-3)
 * Slow, half-anchored maps in the configs (μ1 = 0.985, μ2 = 0.0075 instead of the paper's
   faster map): a mistracked frame barely enters the map, and on the toroidal canvas a strong
   anchor aliases the first view when the camera is far from it (the arm failed with it).
+* ``codebook.kernel_sigma`` (0.7 px for the 96x72 configs, 0 for the arm): each event pixel is
+  encoded as a Gaussian blob, s = Φ (G ∗ I) = (Φ I) ⊙ ĝ with DFT codebooks (kernel shaping of
+  the FPE). Sparse binary frames give spiky correlations; the smoother peaks lowered the
+  rotation error on 12 of 13 tuning seeds (no IMU), about neutral with the IMU.
 * ``readout.source = drive`` (off by default) and ``cleanup.whiten`` (off) are experiments.
 
 Two paths with the same equations:
@@ -126,6 +130,12 @@ class CodebookConfig:
                                lo=0, hi=4096, read_only=True)
     rcond: float = param(1e-6, 'relative cut-off of the pseudo-inverses of random codebooks',
                          lo=0.0, hi=1.0, read_only=True)
+    kernel_sigma: float = param(0.0, 'encode each event pixel as a Gaussian blob of this std '
+                                '(frame pixels; 0: one pixel): s = Phi (G * I), with DFT '
+                                'codebooks s = (Phi I) . g, a fixed weighting of the '
+                                'frequencies (FPE kernel shaping); smooths the correlation '
+                                'peaks of sparse binary frames', lo=0.0, hi=20.0,
+                                read_only=True)
 
     def __post_init__(self) -> None:
         validate(self)
@@ -780,6 +790,12 @@ class HRN:
         self.factors: tuple[str, ...] = tuple(self._engine.books)
         self._kernels: dict[str, Complex] = {}      # readout.refine kernels per factor
         self._canvas = np.zeros((self.geometry.canvas_height, self.geometry.canvas_width))
+        self._blur: Real | None = None            # ĝ of codebook.kernel_sigma
+        if c.codebook.kernel_sigma > 0.0:
+            sig = c.codebook.kernel_sigma
+            fy = sfft.fftfreq(self.geometry.canvas_height)[:, None]
+            fx = sfft.fftfreq(self.geometry.canvas_width)[None, :]
+            self._blur = np.exp(-2.0 * math.pi ** 2 * sig ** 2 * (fx ** 2 + fy ** 2))
         self.reset()
 
     def _make_engine(self, rng: np.random.Generator,
@@ -803,7 +819,10 @@ class HRN:
         g = self.geometry
         ox, oy = g.offset
         self._canvas[oy:oy + g.height, ox:ox + g.width] = image
-        return self._canvas
+        if self._blur is None:
+            return self._canvas
+        # G * I on the (toroidal) canvas, i.e. s = (Φ I) ⊙ ĝ for DFT codebooks
+        return np.real(sfft.ifft2(sfft.fft2(self._canvas, workers=1) * self._blur, workers=1))
 
     def readout_axis(self, name: str) -> Real:
         """Physical value (px, rad, log scale) of each readout entry of factor ``name``."""
