@@ -296,3 +296,28 @@ def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
     assert np.sum(img * xx) == pytest.approx(20.0, abs=1e-4)
     assert np.sum(img * yy) == pytest.approx(10.0, abs=1e-4)
     assert np.sqrt(np.sum(img * (xx - 20.0) ** 2)) == pytest.approx(1.5, abs=0.01)
+
+
+@pytest.mark.parametrize('gate', [0.0, 5.0])
+def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float) -> None:
+    """One frame from a far pose (a glitch) while the gyro says 'still': with the gate the
+    readout keeps the prediction and the map is not updated; without it the readout jumps."""
+    rng = np.random.default_rng(4)
+    scene = random_scene(rng)
+    hrn = make({'map': {'block_iterations': 0},
+                'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
+                'imu': {'focal_px': FOCAL, 'gate_deg': gate}})
+    still = np.zeros(3)
+    for i in range(30):
+        hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i, gyro_delta=still)
+    glitch = hrn.step(event_frame(scene, (3.0, -2.0, 0.15, 0.0), rng), 30, gyro_delta=still)
+    jumped = max(abs(glitch.h), abs(glitch.v)) > 1.5 or abs(glitch.r) > 0.1
+    if gate:
+        assert hrn.rejected_frames == 1 and not glitch.map_updated
+        assert abs(glitch.h) < 0.5 and abs(glitch.v) < 0.5 and abs(glitch.r) < 0.02
+        assert hrn.innovation_deg > gate
+    else:
+        assert jumped and glitch.map_updated and hrn.rejected_frames == 0
+    after = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 31, gyro_delta=still)
+    if gate:
+        assert abs(after.h) < 0.5 and abs(after.r) < 0.02
