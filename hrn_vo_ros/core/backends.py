@@ -36,6 +36,7 @@ class ResonatorBackend(Protocol):
     geometry: Geometry
     factors: tuple[str, ...]
     iteration: int
+    rejected_frames: int      # frames rejected by the IMU innovation gate (imu.gate_deg)
 
     def step(self, image: NDArray[Any], t_ns: int, *,
              gyro_delta: NDArray[Any] | None = None) -> Estimate:

@@ -177,7 +177,8 @@ class ResonatorNode(Node):
             ('pending_frames', len(self._pending)), ('gyro_samples', len(self._gyro)),
             ('output_subscribers', min(p.get_subscription_count() for p in (
                 self._pub_readout, self._pub_pose, self._pub_odom))),
-            ('odom_subscribers', self._pub_odom.get_subscription_count())]
+            ('odom_subscribers', self._pub_odom.get_subscription_count()),
+            ('imu_rejected_frames', self._hrn.rejected_frames)]
         extra += [(f'confidence_{k}', f'{v:.3f}') for k, v in sorted(self._confidence.items())]
         extra += self._extra_diagnostics()
         publish_diagnostics(self, self._diag, self.stats, extra)
