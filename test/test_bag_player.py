@@ -231,3 +231,36 @@ def test_player_refuses_bad_bags(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert 'unfinished' in capsys.readouterr().err
     assert hrn_vo(['play', str(tmp_path / 'missing')]) == 4
     assert 'does not exist' in capsys.readouterr().err
+
+
+@pytest.mark.ros
+def test_wait_topics_choose_what_the_player_waits_for(
+        ten_second_bag: tuple[Path, dict[str, object]]) -> None:
+    """By default the player waits for event subscribers only; ``wait_topics`` (e.g. the IMU,
+    whose first samples a late subscriber would lose) replaces that list, unknown ones fail."""
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import Imu
+
+    from hrn_vo_ros.nodes.bag_player import BagPlayer
+
+    bag = str(ten_second_bag[0])
+    rclpy.init()
+    try:
+        default = BagPlayer(PlaybackConfig(bag=bag, wait_for_subscribers=1, wait_timeout_s=0.3))
+        assert default.waited_for == ['/event_camera/events']
+        imu_sub = default.create_subscription(Imu, '/imu', lambda _m: None,
+                                              qos_profile_sensor_data)   # best effort, as recorded
+        assert not default.wait_for_subscribers()          # nobody on the events: times out
+        default.destroy_subscription(imu_sub)
+        default.destroy_node()
+        imu = BagPlayer(PlaybackConfig(bag=bag, wait_for_subscribers=1, wait_timeout_s=5.0,
+                                       wait_topics=('/imu',)))
+        sub = imu.create_subscription(Imu, '/imu', lambda _m: None, qos_profile_sensor_data)
+        assert imu.waited_for == ['/imu'] and imu.wait_for_subscribers()
+        imu.destroy_subscription(sub)
+        imu.destroy_node()
+        with pytest.raises(ConfigError, match='/nope'):
+            BagPlayer(PlaybackConfig(bag=bag, wait_topics=('/nope',)))
+    finally:
+        rclpy.try_shutdown()

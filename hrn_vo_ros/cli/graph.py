@@ -197,12 +197,15 @@ class GraphResult:
     diagnostics: dict[str, dict[str, str]]
 
 
-def player_argv(python: str, bag: Path, rate: float) -> list[str]:
-    """The bag player (issue 5's ``bag_player``): RELIABLE, after the packetizer subscribed.
+def player_argv(python: str, bag: Path, rate: float, *, imu: bool = False) -> list[str]:
+    """The bag player (issue 5's ``bag_player``): RELIABLE, after the packetizer (and with
+    ``imu`` the resonator's IMU subscription) subscribed.
 
     ``rate`` 0 plays at ``max_rate`` (KEEP_ALL writers paced by the subscribers).
     """
     params: dict[str, object] = {'bag': str(bag), 'reliable': True, 'wait_for_subscribers': 1}
+    if imu:
+        params['wait_topics'] = [EVENTS_TOPIC, IMU_TOPIC]
     params.update({'max_rate': True} if rate <= 0 else {'rate': float(rate)})
     return [python, '-m', 'hrn_vo_ros.nodes.bag_player', *ros_args(None, params)]
 
@@ -269,7 +272,7 @@ def run_graph(bag: Path, out_bag: Path, log_dir: Path, *, params_file: Path | No
         mon.wait(lambda: mon.value('packetizer_node', 'frames_subscribers', 0) > 0
                  and mon.value('resonator_node', 'output_subscribers', 0) > 0,
                  60.0, 'the nodes to connect', graph)
-        player = graph.start('bag_player', player_argv(graph.python, bag, rate))
+        player = graph.start('bag_player', player_argv(graph.python, bag, rate, imu=imu))
         mon.wait(lambda: player.proc.poll() is not None, timeout, 'the bag player', graph)
         if player.proc.returncode != 0:
             raise GraphError(f'the bag player failed (exit {player.proc.returncode}); log '

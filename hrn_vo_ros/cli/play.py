@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument('--clock-hz', type=float, default=100.0, help='largest /clock rate')
     p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
                    help='wait until each event topic has N subscribers')
+    p.add_argument('--wait-topics', nargs='+', default=[], metavar='TOPIC',
+                   help='the topics --wait-for-subscribers waits on (default: the event '
+                   'topics), e.g. /event_camera/events /imu')
     p.add_argument('--wait-timeout', type=float, default=30.0, metavar='S',
                    help='stop waiting for subscribers after S seconds (default 30)')
     p.set_defaults(func=run)
@@ -46,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
                          reliable=args.reliable,
                          topics=tuple(args.topics), clock=args.clock, clock_hz=args.clock_hz,
                          wait_for_subscribers=args.wait_for_subscribers,
-                         wait_timeout_s=args.wait_timeout)
+                         wait_topics=tuple(args.wait_topics), wait_timeout_s=args.wait_timeout)
     import rclpy  # only this subcommand needs ROS
 
     from hrn_vo_ros.nodes.bag_player import BagPlayer

@@ -39,6 +39,9 @@ class PlaybackConfig:
     wait_for_subscribers: int = param(0, 'Wait until every event topic has this many '
                                       'subscribers before starting', lo=0, hi=1000,
                                       read_only=True)
+    wait_topics: tuple[str, ...] = param((), 'Topics wait_for_subscribers waits on (empty: the '
+                                         'event topics), e.g. the IMU topic too, so that its '
+                                         'first samples are not lost', read_only=True)
     wait_timeout_s: float = param(30.0, 'Give up waiting for subscribers after this, seconds',
                                   lo=0.0, hi=3600.0, read_only=True)
     ack_timeout_s: float = param(5.0, 'Longest wait at the end for reliable subscribers to '

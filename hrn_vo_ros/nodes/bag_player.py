@@ -28,7 +28,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosgraph_msgs.msg import Clock
 
 from hrn_vo_ros.core.playback import play, PlaybackConfig
-from hrn_vo_ros.errors import BagError, HrnVoError
+from hrn_vo_ros.errors import BagError, ConfigError, HrnVoError
 from hrn_vo_ros.io import bags, ros_msgs
 
 EVENT_TYPES = (bags.EVENT_PACKET, bags.DVS_EVENT_ARRAY)
@@ -105,13 +105,18 @@ class BagPlayer(Node):
             self.pubs[t] = self.create_publisher(
                 cls, t, qos_profile(conns[t], keep_all=config.max_rate,
                                     reliable=config.reliable or config.max_rate))
-        self.waited_for = [t for t in self.topics if conns[t].msgtype in EVENT_TYPES] \
-            or self.topics
+        missing = [t for t in config.wait_topics if t not in self.pubs]
+        if missing:
+            raise ConfigError(f'wait_topics {missing} are not played from {config.bag} (played: '
+                              f'{self.topics}): wait on played topics only')
+        self.waited_for = list(config.wait_topics) or [
+            t for t in self.topics if conns[t].msgtype in EVENT_TYPES] or self.topics
         self.clock_pub = self.create_publisher(Clock, '/clock', 10) if config.clock else None
         self.sent = dict.fromkeys(self.topics, 0)
 
     def wait_for_subscribers(self) -> bool:
-        """Wait until every event topic has ``wait_for_subscribers`` subscribers (or timeout)."""
+        """Wait until every topic of ``waited_for`` (``wait_topics``, or the event topics) has
+        ``wait_for_subscribers`` subscribers (or timeout)."""
         need, deadline = self.cfg.wait_for_subscribers, time.monotonic() + self.cfg.wait_timeout_s
         while any(self.pubs[t].get_subscription_count() < need for t in self.waited_for):
             if time.monotonic() > deadline:
