@@ -44,8 +44,9 @@ class PlaybackConfig:
                                          'first samples are not lost', read_only=True)
     wait_timeout_s: float = param(30.0, 'Give up waiting for subscribers after this, seconds',
                                   lo=0.0, hi=3600.0, read_only=True)
-    ack_timeout_s: float = param(5.0, 'Longest wait at the end for reliable subscribers to '
-                                 'acknowledge everything, seconds', lo=0.001, hi=600.0,
+    ack_timeout_s: float = param(5.0, 'Longest wait for reliable subscribers: at the end to '
+                                 'acknowledge everything, and at max_rate for a lagging one to '
+                                 'take the next message, seconds', lo=0.001, hi=600.0,
                                  read_only=True)
 
     def __post_init__(self) -> None:
