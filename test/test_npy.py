@@ -55,7 +55,7 @@ def test_trajectory_file(tmp_path: Path) -> None:
     assert traj.t.tolist() == [500_000_000, 1_000_000_001]
     assert traj.quat[1].tolist() == [0.0, 0.0, 0.6, 0.8]
     (tmp_path / 'bad.txt').write_text('0.5 1 2 3 0 0 0 1\n0.4 1 2 3 0 0 0 1\n')
-    with pytest.raises(DatasetError, match='bad.txt:2: time goes backwards'):
+    with pytest.raises(DatasetError, match='bad.txt:2: time 0.4 s is before the previous line'):
         npy.read_trajectory(tmp_path / 'bad.txt')
     (tmp_path / 'short.txt').write_text('0.5 1 2 3 0 0 0\n')
     with pytest.raises(DatasetError, match='expected 8 columns'):

@@ -41,7 +41,7 @@ polarity other than 0/1, a truncated file.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 import functools
 import json
@@ -497,11 +497,32 @@ def read_events(path: Path | str, *, sensor_size: tuple[int, int] | None = None)
 
 def _read_table(src: _Source, name: str, columns: str,
                 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """A small ``t v1 v2 ...`` text table: exact int ns times and float values."""
-    where = src.where(name)
+    """A small ``t v1 v2 ...`` text table of a sequence (see :func:`parse_table`)."""
+    return parse_table(src.read_text(name), columns, src.where(name))
+
+
+def parse_table(text: str, columns: str, where: Path | str, *,
+                to_ns: Callable[[str], int] = seconds_to_ns,
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """A ``t v1 v2 ...`` text table: exact int ns times (decimal seconds) and float values.
+
+    Blank lines and ``#`` comments are skipped; the times must not decrease.
+
+    Args:
+        text: The table.
+        columns: Column names, space separated (``'t px py pz qx qy qz qw'``), for messages.
+        where: File named in the errors.
+        to_ns: Time token → int ns (default exact decimal seconds).
+
+    Raises:
+        DatasetError: naming the line for a wrong column count, a bad or non-finite number or a
+            time before the previous line.
+
+    Shapes:
+        returns t (n,) int64 and values (n, ncol - 1) float64.
+    """
     ncol = len(columns.split())
-    text = src.read_text(name)
-    fast = _table_fast(text, ncol)
+    fast = _table_fast(text, ncol) if to_ns is seconds_to_ns else None
     if fast is not None:
         return fast
     lines = text.split('\n')
@@ -517,7 +538,7 @@ def _read_table(src: _Source, name: str, columns: str,
             msg = f'expected {ncol} columns "{columns}", got {len(parts)}: {line[:60]!r}{hint}'
             raise DatasetError(msg, path=where, line=i + 1)
         try:
-            t = seconds_to_ns(parts[0])
+            t = to_ns(parts[0])
             vals = [float(v) for v in parts[1:]]
         except ValueError as err:
             raise DatasetError(f'malformed line {line[:60]!r}: {err}', path=where,

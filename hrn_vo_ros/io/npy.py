@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.events import EventArray
 from hrn_vo_ros.core.sequence import Trajectory
 from hrn_vo_ros.errors import DatasetError
-from hrn_vo_ros.io.ecd import seconds_to_ns
+from hrn_vo_ros.io.ecd import parse_table, seconds_to_ns
 
 TimeUnit = Literal['s', 'ms', 'us', 'ns']
 _NS_PER = {'s': 1_000_000_000, 'ms': 1_000_000, 'us': 1_000, 'ns': 1}
@@ -125,33 +125,16 @@ def read_trajectory(path: Path | str) -> Trajectory:
     path = Path(path)
     if not path.is_file():
         raise DatasetError('does not exist: give a trajectory text file', path=path)
-    ts: list[int] = []
-    rows: list[list[float]] = []
-    header_allowed = True
-    for i, line in enumerate(path.read_text().splitlines()):
-        parts = line.replace(',', ' ').split()
+    lines = path.read_text().replace(',', ' ').split('\n')
+    for i, line in enumerate(lines):      # one CSV header line ("t,px,...") before the data
+        parts = line.split()
         if not parts or parts[0].startswith('#'):
             continue
-        if header_allowed and not parts[0][:1].isdigit():
-            header_allowed = False  # one CSV header line ("t,px,...") before the data
-            continue
-        header_allowed = False
-        if len(parts) != 8:
-            raise DatasetError(f'expected 8 columns "t px py pz qx qy qz qw", got '
-                               f'{len(parts)}', path=path, line=i + 1)
-        try:
-            t = _seconds_to_ns(parts[0])
-            vals = [float(v) for v in parts[1:]]
-        except ValueError as err:
-            raise DatasetError(f'malformed line {line[:60]!r}: {err}', path=path,
-                               line=i + 1) from None
-        if ts and t < ts[-1]:
-            raise DatasetError('time goes backwards: lines must be sorted by time', path=path,
-                               line=i + 1)
-        ts.append(t)
-        rows.append(vals)
-    v = np.array(rows, np.float64).reshape(len(rows), 7)
-    return Trajectory(t=np.array(ts, np.int64), pos=np.ascontiguousarray(v[:, :3]),
+        if not parts[0][:1].isdigit():
+            lines[i] = ''                 # keeps the line numbers of the errors
+        break
+    t, v = parse_table('\n'.join(lines), 't px py pz qx qy qz qw', path, to_ns=_seconds_to_ns)
+    return Trajectory(t=t, pos=np.ascontiguousarray(v[:, :3]),
                       quat=np.ascontiguousarray(v[:, 3:]))
 
 
