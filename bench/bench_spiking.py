@@ -52,6 +52,7 @@ from hrn_vo_ros.core.sequence import Trajectory  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
+from hrn_vo_ros.errors import DatasetError  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -120,8 +121,12 @@ def run(cfg: ResonatorConfig, backend: BackendConfig, t: np.ndarray, imgs: np.nd
 def geodesic(gt: Trajectory | np.ndarray, t: np.ndarray, est: np.ndarray) -> float:
     if isinstance(gt, np.ndarray):            # synthetic: median roll error vs the truth
         return differences(est[30:], gt[30:])[0]
-    res = evaluate(gt, EstimateSeries(t.astype(np.int64), est[:, 0], est[:, 1], est[:, 2]),
-                   'rotation')
+    try:
+        res = evaluate(gt, EstimateSeries(t.astype(np.int64), est[:, 0], est[:, 1], est[:, 2]),
+                       'rotation')
+    except DatasetError as err:              # e.g. a variant that does not move at all
+        print(f'  (not evaluated: {err})', flush=True)
+        return float('nan')
     return res.metrics['median_angle_deg']
 
 
