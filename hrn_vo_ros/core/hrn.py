@@ -353,6 +353,11 @@ def population_readout(sim: Real, half_window: int, circular: bool
     return mean, spread, float(sim[k])
 
 
+def centred_mod(x: Any, period: float) -> Any:
+    """``x`` wrapped into ``[-period/2, period/2)`` (scalars or arrays)."""
+    return (x + 0.5 * period) % period - 0.5 * period
+
+
 @dataclass(frozen=True, slots=True)
 class FactorCodebook:
     """A 1-D FPE codebook along one axis: entries ``seed^{values[j]}``.
@@ -372,6 +377,10 @@ class FactorCodebook:
     period: float | None
     unit: float
     sign: float
+
+    def wrap(self, index: float) -> float:
+        """An exponent (index units) wrapped into the codebook's period, if it has one."""
+        return index if self.period is None else float(centred_mod(index, self.period))
 
     @property
     def matrix(self) -> Complex:
@@ -842,8 +851,7 @@ class HRN:
         b = self._engine.books[name]
         vals = b.sign * b.unit * b.values
         if b.period is not None:
-            half = 0.5 * b.period * b.unit
-            vals = np.mod(vals + half, 2 * half) - half
+            vals = centred_mod(vals, b.period * b.unit)
         return vals
 
     def _readout(self, sims: dict[str, Real]) -> tuple[dict[str, float], dict[str, float],
@@ -861,9 +869,7 @@ class HRN:
                     self._kernels[name] = refine_kernel(b.phases, step)
                 value = refine_exponent(self._engine.state[name], b.phases, value, step,
                                         self._kernels[name])
-            if b.period is not None:
-                value = (value + 0.5 * b.period) % b.period - 0.5 * b.period
-            point[name], spread[name], peak[name] = value, sd * step * b.unit, pk
+            point[name], spread[name], peak[name] = b.wrap(value), sd * step * b.unit, pk
         return point, spread, peak
 
     def _imu_predict(self, gyro_delta: NDArray[Any]) -> dict[str, float]:
@@ -891,9 +897,7 @@ class HRN:
         worst = 0.0
         for name in ('h', 'v', 'r'):
             b = books[name]
-            d = point[name] - predicted[name]
-            if b.period is not None:
-                d = (d + 0.5 * b.period) % b.period - 0.5 * b.period
+            d = b.wrap(point[name] - predicted[name])
             ang = b.unit * abs(d) if name == 'r' else math.atan(abs(d) / self.cfg.imu.focal_px)
             worst = max(worst, ang)
         return math.degrees(worst)
@@ -961,10 +965,7 @@ class HRN:
                 self.rejected_frames += 1
                 eng.state.update(held)
                 sims = eng.similarities()
-                point = {k: predicted[k] for k in point}
-                for k, b in self._engine.books.items():   # wrap like the readout does
-                    if b.period is not None:
-                        point[k] = (point[k] + 0.5 * b.period) % b.period - 0.5 * b.period
+                point = {k: self._engine.books[k].wrap(predicted[k]) for k in point}
         self._point = point
         updated = False
         if c.map.learn and self.iteration > c.map.block_iterations and not rejected:
@@ -979,9 +980,8 @@ class HRN:
             b = books[name]
             val = b.sign * b.unit * idx
             if b.period is not None:            # unwrap against the previous output
-                per = b.period * b.unit
                 prev = self._out[name]
-                val = prev + ((val - prev + 0.5 * per) % per - 0.5 * per)
+                val = prev + centred_mod(val - prev, b.period * b.unit)
             self._out[name] = val
         est = Estimate(t_ns=int(t_ns), h=self._out['h'], v=self._out['v'], r=self._out['r'],
                        z=self._out['z'], confidence=peak, spread=spread,
