@@ -270,8 +270,8 @@ def test_wait_topics_choose_what_the_player_waits_for(
 def test_max_rate_publish_retries_on_back_pressure_then_gives_up() -> None:
     from rclpy._rclpy_pybind11 import RCLError
 
+    from hrn_vo_ros.core.playback import publish_retrying
     from hrn_vo_ros.errors import BagError
-    from hrn_vo_ros.nodes.bag_player import publish_retrying
 
     clock = [0.0]
     calls: list[bytes] = []
@@ -284,11 +284,13 @@ def test_max_rate_publish_retries_on_back_pressure_then_gives_up() -> None:
         if len(calls) <= 2:
             raise RCLError('failed to publish: timeout')
 
-    assert publish_retrying(busy_twice, b'x', 1.0, now=lambda: clock[0], sleep=sleep) == 2
+    assert publish_retrying(busy_twice, b'x', 1.0, retry_on=RCLError, now=lambda: clock[0],
+                            sleep=sleep) == 2
     assert calls == [b'x'] * 3
 
     def always_busy(raw: bytes) -> None:
         raise RCLError('failed to publish: timeout')
 
     with pytest.raises(BagError, match='max_rate'):
-        publish_retrying(always_busy, b'x', 0.05, now=lambda: clock[0], sleep=sleep)
+        publish_retrying(always_busy, b'x', 0.05, retry_on=RCLError, now=lambda: clock[0],
+                         sleep=sleep)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import time
 
 from hrn_vo_ros.core.configbase import param, validate
+from hrn_vo_ros.errors import BagError
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,3 +144,33 @@ def play(records: Iterable[tuple[str, int, bytes]], publish: Callable[[str, byte
         if tick is not None:
             clock(tick)
     return sent
+
+
+def publish_retrying(publish: Callable[[bytes], None], raw: bytes, timeout_s: float, *,
+                     retry_on: type[Exception], now: Callable[[], float] = time.monotonic,
+                     sleep: Callable[[float], None] = time.sleep) -> int:
+    """Publish, retrying while the middleware reports a full KEEP_ALL history.
+
+    A RELIABLE KEEP_ALL writer blocks on a full history and raises (rclpy: ``RCLError``, passed
+    as ``retry_on``) after its blocking time (Fast DDS: 100 ms) when a reader lags; at
+    ``max_rate`` that is back pressure, not a failure, so the message is offered again until
+    ``timeout_s`` without progress.
+
+    Returns:
+        The number of retries.
+
+    Raises:
+        BagError: if the readers do not take the message within ``timeout_s``.
+    """
+    deadline = now() + timeout_s
+    retries = 0
+    while True:
+        try:
+            publish(raw)
+            return retries
+        except retry_on as err:
+            if now() > deadline:
+                raise BagError(f'a subscriber took no message for {timeout_s} s at max_rate '
+                               f'({err}); raise ack_timeout_s or drop --max-rate') from None
+            retries += 1
+            sleep(0.005)

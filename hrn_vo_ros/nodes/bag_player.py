@@ -15,7 +15,6 @@ messages sent per topic.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from contextlib import ExitStack
 import sys
 import time
@@ -29,7 +28,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from hrn_vo_ros.core.playback import play, PlaybackConfig
+from hrn_vo_ros.core.playback import play, PlaybackConfig, publish_retrying
 from hrn_vo_ros.errors import BagError, ConfigError, HrnVoError
 from hrn_vo_ros.io import bags, ros_msgs
 
@@ -59,35 +58,6 @@ def qos_profile(conn: Any, *, reliable: bool = False, keep_all: bool = False) ->
         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort and not reliable
         else ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-
-
-def publish_retrying(publish: Callable[[bytes], None], raw: bytes, timeout_s: float, *,
-                     now: Callable[[], float] = time.monotonic,
-                     sleep: Callable[[float], None] = time.sleep) -> int:
-    """Publish, retrying while the middleware reports a full KEEP_ALL history.
-
-    A RELIABLE KEEP_ALL writer blocks on a full history and raises ``RCLError`` after its
-    blocking time (Fast DDS: 100 ms) when a reader lags; at ``max_rate`` that is back pressure,
-    not a failure, so the message is offered again until ``timeout_s`` without progress.
-
-    Returns:
-        The number of retries.
-
-    Raises:
-        BagError: if the readers do not take the message within ``timeout_s``.
-    """
-    deadline = now() + timeout_s
-    retries = 0
-    while True:
-        try:
-            publish(raw)
-            return retries
-        except RCLError as err:
-            if now() > deadline:
-                raise BagError(f'a subscriber took no message for {timeout_s} s at max_rate '
-                               f'({err}); raise ack_timeout_s or drop --max-rate') from None
-            retries += 1
-            sleep(0.005)
 
 
 class BagPlayer(Node):
@@ -167,7 +137,8 @@ class BagPlayer(Node):
                    for m in bags.iter_messages(self.reader, self.topics))
         def publish(topic: str, raw: bytes) -> None:
             if cfg.max_rate:    # KEEP_ALL writers block, then time out while readers lag
-                publish_retrying(self.pubs[topic].publish, raw, cfg.ack_timeout_s)
+                publish_retrying(self.pubs[topic].publish, raw, cfg.ack_timeout_s,
+                                 retry_on=RCLError)
             else:
                 self.pubs[topic].publish(raw)
 
