@@ -89,6 +89,20 @@ def test_scale_factor_recovers_zoom() -> None:
     assert_close(est[-1], [2.0, -1.0, 0.1, 0.15], (0.6, 0.6, 0.03, 0.03))
 
 
+def test_velocity_prediction_tracks_faster_motion_more_precisely() -> None:
+    """The constant-velocity prediction (cleanup.predict_velocity) moves the states ahead by
+    the smoothed readout change per frame: on fast synthetic motion the readout lags less."""
+    traj = trajectory(200, amp_xy=10.0, amp_roll=0.4, period=60.0)
+    base = {'cleanup': {'gamma': 0.9, 'iterations_per_frame': 1}, 'map': {'learn': False}}
+    plain = track(make(base), traj, seed=1)
+    pred = track(make({**base, 'cleanup': {**base['cleanup'], 'predict_velocity': 1.0}}), traj,
+                 seed=1)
+    e_plain = np.median(np.abs(plain[20:, :3] - traj[20:, :3]), axis=0)
+    e_pred = np.median(np.abs(pred[20:, :3] - traj[20:, :3]), axis=0)
+    assert np.all(e_pred < 0.7 * e_plain), (e_plain, e_pred)
+    assert e_pred[0] < 0.3 and e_pred[1] < 0.3 and e_pred[2] < np.deg2rad(1.0), e_pred
+
+
 def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
     """With γ = 0 the cleanup does not move the states, so only the prediction does."""
     rng = np.random.default_rng(0)

@@ -77,6 +77,13 @@ Choices beyond the paper (each a config switch; measured on simulator seeds 1-3)
   encoded as a Gaussian blob, s = Φ (G ∗ I) = (Φ I) ⊙ ĝ with DFT codebooks (kernel shaping of
   the FPE). Sparse binary frames give spiky correlations; the smoother peaks lowered the
   rotation error on 12 of 13 tuning seeds (no IMU), about neutral with the IMU.
+* ``cleanup.predict_velocity`` (1 in all configs): without a gyro, the states are bound
+  with the smoothed readout change per frame before each frame (a constant-velocity
+  prediction, the same fractional binding as the IMU's Eq. 10). Lower rotation error on all
+  20 tuning seeds (mean 0.63 -> 0.58°), and with every second frame dropped (2x faster
+  motion) 20 of 20 seeds track instead of 18; neutral on translation and the arm. The
+  velocity is an exponential average (``predict_smoothing`` 0.5): the raw last change feeds
+  the per-frame readout noise back and diverged on synthetic frames.
 * ``readout.source = drive`` (off by default) and ``cleanup.whiten`` (off) are experiments.
 
 Two paths with the same equations:
@@ -171,6 +178,15 @@ class CleanupConfig:
                       choices=('identity', 'random'))
     whiten: bool = param(False, 'phasor-project each unbinding product before its cleanup, '
                          'C_X(f(u)) (phase correlation: sharp peaks, few spurious attractors)')
+    predict_velocity: float = param(0.0, 'constant-velocity prediction (0: off): before a '
+                                    'frame without a gyro delta, bind the h/v/r states with '
+                                    'this fraction of their velocity (readout change per '
+                                    'frame), the way the gyro prediction binds them with the '
+                                    'integrated rate', lo=0.0, hi=1.0)
+    predict_smoothing: float = param(0.5, 'weight of the newest frame-to-frame readout change '
+                                     'in the velocity (an exponential average; 1: the last '
+                                     'change only, which amplifies per-frame readout noise)',
+                                     lo=0.01, hi=1.0)
 
     def __post_init__(self) -> None:
         validate(self)
@@ -841,6 +857,8 @@ class HRN:
         self._out = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
+        self._prev: dict[str, float] | None = None  # readout of the last valid frame
+        self._velocity: dict[str, float] | None = None   # smoothed readout change per frame
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -898,6 +916,25 @@ class HRN:
             self._engine.shift(name, delta)
         return shift
 
+    def _track_velocity(self, point: dict[str, float]) -> None:
+        """Update the smoothed h/v/r change per frame (cleanup.predict_smoothing)."""
+        prev, self._prev = self._prev, point
+        if prev is None:
+            return
+        a, books = self.cfg.cleanup.predict_smoothing, self._engine.books
+        step = {k: books[k].wrap(point[k] - prev[k]) for k in ('h', 'v', 'r')}
+        old = self._velocity
+        self._velocity = step if old is None else {
+            k: (1.0 - a) * old[k] + a * d for k, d in step.items()}
+
+    def _predict_velocity(self) -> None:
+        """Constant-velocity prediction: bind h, v, r with a fraction of their velocity."""
+        if self._velocity is None:
+            return
+        k = self.cfg.cleanup.predict_velocity
+        for name, d in self._velocity.items():
+            self._engine.shift(name, k * d)
+
     def _innovation_deg(self, point: dict[str, float], predicted: dict[str, float]) -> float:
         """Largest angle between a readout and the gyro prediction (roll, pan/tilt), degrees."""
         books = self._engine.books
@@ -950,6 +987,8 @@ class HRN:
             self._started = True
         predicted: dict[str, float] | None = None
         held: dict[str, Any] = {}
+        if gyro_delta is None and c.cleanup.predict_velocity > 0.0:
+            self._predict_velocity()
         if not first and gyro_delta is not None:
             shift = self._imu_predict(gyro_delta)
             if c.imu.gate_deg > 0.0:
@@ -974,6 +1013,8 @@ class HRN:
                 sims = eng.similarities()
                 point = {k: self._engine.books[k].wrap(predicted[k]) for k in point}
         self._point = point
+        if c.cleanup.predict_velocity > 0.0:
+            self._track_velocity(point)
         updated = False
         if c.map.learn and self.iteration > c.map.block_iterations and not rejected:
             eng.update_map(S, point, c.map.mu1, c.map.mu2)
@@ -997,6 +1038,7 @@ class HRN:
         return est
 
     def _repeat(self, t_ns: int) -> Estimate:
+        self._prev = self._velocity = None   # a skipped frame breaks the velocity
         last = self._last
         zeros = dict.fromkeys(self.factors, 0.0)
         if last is None:
