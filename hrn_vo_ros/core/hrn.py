@@ -987,13 +987,13 @@ class HRN:
             self._started = True
         predicted: dict[str, float] | None = None
         held: dict[str, Any] = {}
-        if gyro_delta is None and c.cleanup.predict_velocity > 0.0:
-            self._predict_velocity()
-        if not first and gyro_delta is not None:
+        if not first and gyro_delta is not None:       # the gyro, else the velocity predicts
             shift = self._imu_predict(gyro_delta)
             if c.imu.gate_deg > 0.0:
                 predicted = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
                 held = {k: x.copy() for k, x in eng.state.items()}
+        elif c.cleanup.predict_velocity > 0.0:         # no-op until two valid frames
+            self._predict_velocity()
         S = eng.encode(canvas)
         for _ in range(c.cleanup.iterations_per_frame):
             eng.iterate(S)
