@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import math
 
+from hrn_synth import event_frame, random_scene, trajectory
 import numpy as np
 import pytest
 from scipy import ndimage
 
-from hrn_vo_ros.core.baseline import BaselineConfig, PhaseCorrelationBaseline, run_baseline
+from hrn_vo_ros.core.baseline import (
+    BaselineConfig,
+    config_like,
+    PhaseCorrelationBaseline,
+    run_baseline,
+)
+from hrn_vo_ros.core.configbase import from_dict
+from hrn_vo_ros.core.hrn import HRN, ResonatorConfig
 from hrn_vo_ros.errors import TrackingError
 
 
@@ -65,3 +73,18 @@ def test_bad_frames(scene: np.ndarray) -> None:
     noise = (np.random.default_rng(1).random((72, 96)) < 0.5).astype(np.uint8)
     assert not b.step(noise, 1).valid  # half the pixels on: a still camera's noise, skipped
     assert b.step(view(scene, 0, 0, 0), 2).valid
+
+
+@pytest.mark.parametrize('per_frame', [1, 2, 3])
+def test_config_like_starts_the_map_on_the_same_frame_as_the_hrn(per_frame: int) -> None:
+    # the HRN counts resonator iterations, the baseline frames: config_like converts
+    rcfg = from_dict(ResonatorConfig, {'map': {'block_iterations': 10},
+                                       'cleanup': {'iterations_per_frame': per_frame}})
+    hrn = HRN(rcfg, rng=np.random.default_rng(0))
+    base = PhaseCorrelationBaseline(config_like(rcfg))
+    rng = np.random.default_rng(1)
+    scene = random_scene(rng)
+    frames = [event_frame(scene, tuple(p), rng) for p in trajectory(14, amp_xy=1.0)]
+    first_hrn = next(i for i, f in enumerate(frames) if hrn.step(f, i).map_updated)
+    first_base = next(i for i, f in enumerate(frames) if base.step(f, i).map_updated)
+    assert first_hrn == first_base == 10 // per_frame

@@ -327,11 +327,12 @@ class PhaseCorrelationBaseline:
             aligned = sfft.ifft2(sfft.fft2(unwin) * ramp).real
             a = 1.0 - c.mu1 - c.mu2
             self.map = c.mu1 * self.map + c.mu2 * self.map0 + a * aligned
+            return self._emit(t_ns, valid=True, updated=True)
         return self._emit(t_ns, valid=True)
 
-    def _emit(self, t_ns: int, *, valid: bool) -> Estimate:
+    def _emit(self, t_ns: int, *, valid: bool, updated: bool = False) -> Estimate:
         est = Estimate(t_ns=int(t_ns), h=self.h, v=self.v, r=self.r, z=self.z,
-                       iteration=self.iteration, valid=valid)
+                       iteration=self.iteration, map_updated=updated, valid=valid)
         self._last = est
         return est
 
@@ -341,9 +342,16 @@ class PhaseCorrelationBaseline:
 
 
 def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
-    """Baseline settings matching an HRN config: frame size, map anchoring and scale factor."""
+    """Baseline settings matching an HRN config: frame size, map anchoring and scale factor.
+
+    The HRN blocks its map for ``map.block_iterations`` resonator iterations, the baseline for
+    that many frames: the count is divided by ``cleanup.iterations_per_frame`` so that both
+    start learning their maps on the same frame.
+    """
+    per_frame = max(1, rcfg.cleanup.iterations_per_frame)
     return BaselineConfig(width=rcfg.width, height=rcfg.height, mu1=rcfg.map.mu1,
-                          mu2=rcfg.map.mu2, block_iterations=rcfg.map.block_iterations,
+                          mu2=rcfg.map.mu2,
+                          block_iterations=rcfg.map.block_iterations // per_frame,
                           learn_map=rcfg.map.learn, scale=rcfg.scale.enabled,
                           max_log_scale=rcfg.scale.max_log_scale, max_fill=rcfg.max_fill)
 
