@@ -148,6 +148,7 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
     if refine:      # and the other switches of the shipped configs
         base['codebook'] = {**base['codebook'], 'kernel_sigma': 0.7}   # type: ignore[dict-item]
         base['cleanup'] = {'predict_velocity': 1.0, 'iterations_per_frame': 2}
+        base['readout'] = {'refine': True, 'refine_input': 'h,v'}   # r refines on its state
     fast = make(base, seed=3)
     dense = make({**base, 'path': 'dense'}, seed=3)
     rng = np.random.default_rng(0)
@@ -252,6 +253,8 @@ def test_bad_inputs_and_configs() -> None:
         from_dict(ResonatorConfig, {'map': {'mu3': 0.1}})
     with pytest.raises(ConfigError, match='camera_from_imu'):
         from_dict(ResonatorConfig, {'imu': {'camera_from_imu': [1.0, 0.0]}})
+    with pytest.raises(ConfigError, match='refine_input'):
+        from_dict(ResonatorConfig, {'readout': {'refine_input': 'h,x'}})
 
 
 def test_cleanup_nonlinearities_and_population_readout() -> None:

@@ -54,6 +54,14 @@ Choices beyond the paper (each a config switch; measured on simulator seeds 1-3)
   shifts). The exp-sharpened state pulls a population vector towards whole codebook entries
   (pixel locking: a saw-tooth error as the camera crosses pixels); refining removed part of it
   and lowered the errors on every kind (sim seeds 1-6).
+* ``readout.refine_input`` (``h,v`` for robot_arm, empty for the shapes configs): those factors
+  refine on ``phasor(X X† a)`` of their last cleanup input ``a`` instead of the state, i.e. on
+  the continuous peak of the phase-only correlation of the frame with the map (the FHRR form of
+  phase correlation), not sharpened by ``p``. On the slow arm the state's peak lagged the
+  motion by ~4 ms (about 1.7 frames; the roll did not), which the paper's roll-based time
+  alignment cannot remove; the input peak lags ~2.5 ms and is less noisy (sim seeds 1-6:
+  position 0.150 → 0.123 cm). On fast hand-held rotation the unsharpened input is noisier than
+  the state (0.53 → 0.60°), so the shapes configs keep the state.
 * ``imu.gamma``: with the gyro prediction on, the states may move more slowly (γ = 0.3 instead
   of 0.9 for shapes_rotation): the prediction carries the fast motion, the frames correct it,
   like a smaller Kalman gain; better on all 13 tuning seeds.
@@ -222,9 +230,23 @@ class ReadoutConfig:
                          'similarity Re<x, seed^t> near the population vector (fractional '
                          'powers are band-limited shifts): removes the pull towards whole '
                          'codebook entries (pixel locking) of the sharpened state')
+    refine_input: str = param('', 'comma-separated factors (h, v, r, z) whose refine reads the '
+                              'phasor projection of their last cleanup input, phasor(X X^H u), '
+                              'instead of the state: the continuous peak of the phase-only '
+                              'correlation, not sharpened by p (more precise on the slow arm, '
+                              'less robust on fast motion); empty: all read the state')
 
     def __post_init__(self) -> None:
         validate(self)
+        bad = [f for f in self.input_factors if f not in ('h', 'v', 'r', 'z')]
+        if bad:
+            raise ConfigError(f'ReadoutConfig.refine_input: unknown factor(s) {bad}; use a '
+                              'comma-separated subset of h, v, r, z (or empty)')
+
+    @property
+    def input_factors(self) -> tuple[str, ...]:
+        """The factors named in ``refine_input``."""
+        return tuple(f.strip() for f in self.refine_input.split(',') if f.strip())
 
 
 @dataclass(frozen=True, slots=True)
@@ -446,6 +468,7 @@ class _Engine(Protocol):
     def shift(self, name: str, delta: float) -> None: ...
     def update_map(self, S: Any, point: dict[str, float], mu1: float, mu2: float) -> None: ...
     def map_image(self, point: dict[str, float] | None) -> Real: ...
+    def input_projection(self, name: str) -> Any: ...
 
 
 def _normalised(c: Complex, x: Complex, col_norm: float) -> Real:
@@ -513,6 +536,7 @@ class _FastEngine:
         self._sw: Complex = np.zeros(0, np.complex128)
         self.state: dict[str, Complex] = {}
         self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
+        self.inputs: dict[str, Complex] = {}   # the last cleanup inputs (marginals) a
         self.m = np.zeros((g.canvas_height, g.canvas_width), np.complex128)
         self.m0 = self.m
         self._mvh = np.empty_like(self.m)           # m̂ ⊙ v̂ ⊙ ĥ scratch (Λ_w copies it)
@@ -615,6 +639,9 @@ class _FastEngine:
             st['z'] = self.update('z', z, a_z)
         else:
             a_r = w.sum(axis=0)
+        self.inputs.update(h=a_h, v=a_v, r=a_r)
+        if z is not None:
+            self.inputs['z'] = a_z
         st['h'] = self.update('h', h, a_h)
         st['v'] = self.update('v', v, a_v)
         st['r'] = self.update('r', r, a_r)
@@ -622,6 +649,14 @@ class _FastEngine:
     def similarities(self) -> dict[str, Real]:
         return {k: _normalised(self.book_decode(k, x), x, self.col_norm[k])
                 for k, x in self.state.items()}
+
+    def input_projection(self, name: str) -> Complex:
+        """``phasor(X X† a)`` of factor ``name``'s last cleanup input (readout.refine_input);
+        a complete DFT codebook has ``X X† = n I``, so it is ``phasor(a)``."""
+        a = self.inputs[name]
+        if not self._full[name]:
+            a = (self.X[name] * (self.XH[name] * a[None, :]).sum(axis=1)[None, :]).sum(axis=1)
+        return fhrr.phasor(a)
 
     def shift(self, name: str, delta: float) -> None:
         self.state[name] = self.state[name] * fhrr.power(self.books[name].phases, delta)
@@ -708,6 +743,7 @@ class _DenseEngine:
         self.has_z = 'z' in self.books
         self.state: dict[str, NDArray[np.complexfloating]] = {}
         self.drive: dict[str, Real] = {}
+        self.inputs: dict[str, NDArray[np.complexfloating]] = {}
         self.m = np.zeros(self.phi_c.shape[0], dtype)
         self.m0 = self.m
 
@@ -739,6 +775,7 @@ class _DenseEngine:
         self.m = self.m0.copy()
 
     def _clean(self, name: str, u: NDArray[np.complexfloating]) -> NDArray[np.complexfloating]:
+        self.inputs[name] = u
         c = np.real(self.XH[name] @ u).astype(np.float64)
         bound = self.col_norm[name] * float(np.linalg.norm(u))
         self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
@@ -774,6 +811,11 @@ class _DenseEngine:
         return {k: _normalised((self.XH[k] @ x).astype(np.complex128), x.astype(np.complex128),
                                self.col_norm[k])
                 for k, x in self.state.items()}
+
+    def input_projection(self, name: str) -> NDArray[np.complexfloating]:
+        """``phasor(X X† u)`` of factor ``name``'s last cleanup input (readout.refine_input)."""
+        u = self.inputs[name]
+        return fhrr.phasor((self.X[name] @ (self.XH[name] @ u)).astype(np.complex128))
 
     def shift(self, name: str, delta: float) -> None:
         self.state[name] = self.state[name] * fhrr.power(self.phases[name], delta).astype(
@@ -832,6 +874,7 @@ class HRN:
         self._engine: _Engine = self._make_engine(rng, dense_dtype)
         self.factors: tuple[str, ...] = tuple(self._engine.books)
         self._kernels: dict[str, Complex] = {}      # readout.refine kernels per factor
+        self._refine_input = set(c.readout.input_factors)
         self._canvas = np.zeros((self.geometry.canvas_height, self.geometry.canvas_width))
         self._blur: Real | None = None            # ĝ of codebook.kernel_sigma
         if c.codebook.kernel_sigma > 0.0:
@@ -892,8 +935,9 @@ class HRN:
             if self.cfg.readout.refine:
                 if name not in self._kernels:
                     self._kernels[name] = refine_kernel(b.phases, step)
-                value = refine_exponent(self._engine.state[name], b.phases, value, step,
-                                        self._kernels[name])
+                x = (self._engine.input_projection(name) if name in self._refine_input
+                     else self._engine.state[name])
+                value = refine_exponent(x, b.phases, value, step, self._kernels[name])
             point[name], spread[name], peak[name] = b.wrap(value), sd * step * b.unit, pk
         return point, spread, peak
 
