@@ -60,8 +60,8 @@ Choices beyond the paper (each a config switch; measured on simulator seeds 1-3)
   phase correlation), not sharpened by ``p``. On the slow arm the state's peak lagged the
   motion by ~4 ms (about 1.7 frames; the roll did not), which the paper's roll-based time
   alignment cannot remove; the input peak lags ~2.5 ms and is less noisy (sim seeds 1-6:
-  position 0.150 → 0.123 cm). On fast hand-held rotation the unsharpened input is noisier than
-  the state (0.53 → 0.60°), so the shapes configs keep the state.
+  position 0.150 → 0.123 cm). On the fast shapes sequences the unsharpened input is noisier
+  than the state (rotation 0.53 → 0.60°, translation 0.54 → 0.60 cm), so they keep the state.
 * ``imu.gamma``: with the gyro prediction on, the states may move more slowly (γ = 0.3 instead
   of 0.9 for shapes_rotation): the prediction carries the fast motion, the frames correct it,
   like a smaller Kalman gain; better on all 13 tuning seeds.
