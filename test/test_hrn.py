@@ -148,7 +148,7 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
     if refine:      # and the other switches of the shipped configs
         base['codebook'] = {**base['codebook'], 'kernel_sigma': 0.7}   # type: ignore[dict-item]
         base['cleanup'] = {'predict_velocity': 1.0, 'iterations_per_frame': 2}
-        base['readout'] = {'refine': True, 'refine_input': 'h,v'}   # r refines on its state
+        base['readout'] = {'refine': True, 'refine_input': 'h,v,z'}   # r refines on its state
     fast = make(base, seed=3)
     dense = make({**base, 'path': 'dense'}, seed=3)
     rng = np.random.default_rng(0)
