@@ -86,10 +86,20 @@ def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
                  '--calib', 'full']) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == 1 and json.loads(lines[0])['calib'] == 'full'
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '3']) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert any(line.startswith('lag scan (median_angle_deg)') for line in out)
+    scan = json.loads(out[-1])['lag_scan']
+    assert scan['offsets_ms'] == [-3, -2, -1, 0, 1, 2, 3] and len(scan['values']) == 7
+    # a lag-free estimate: errors grow away from the protocol lag
+    assert abs(scan['best_offset_ms']) <= 1
+    assert scan['values'][3] < min(scan['values'][0], scan['values'][6])
 
 
 def test_evaluate_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     ds, est = _dataset(tmp_path)
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '-2']) == 2
+    assert '--lag-scan' in capsys.readouterr().err
     assert main(['evaluate', str(ds), str(tmp_path / 'missing.csv'), '--kind', 'rotation']) == 3
     assert 'not found' in capsys.readouterr().err
     short = tmp_path / 'short.csv'

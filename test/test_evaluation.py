@@ -9,6 +9,7 @@ from hrn_vo_ros.core.evaluation import (
     estimate_lag,
     EstimateSeries,
     evaluate,
+    lag_scan,
     relative_position_errors,
     umeyama,
 )
@@ -157,7 +158,8 @@ def test_translation_without_scale_column_is_worse_and_says_so() -> None:
     assert any('no scale column' in w for w in res.warnings)
 
 
-def test_arm_calibrates_on_first_arc() -> None:
+def _arm_case(pos_lag: float = 0.0) -> tuple[Trajectory, EstimateSeries]:
+    """An arm sweep; the estimate's position lags its roll by ``pos_lag`` seconds."""
     t = np.arange(0.0, SECONDS, 1 / 200)
     phi = -0.4 + 0.8 * 0.5 * (1 - np.cos(2 * np.pi * np.clip(t - 0.5, 0, None) / 4.5))
     pos = np.stack([0.45 * np.cos(phi), 0.45 * np.sin(phi), np.full_like(t, 0.4)], axis=1)
@@ -165,16 +167,34 @@ def test_arm_calibrates_on_first_arc() -> None:
         np.stack([np.zeros_like(phi), np.zeros_like(phi), phi], axis=1)), np.diag([1., -1, -1]))
     gt = Trajectory((t * 1e9).astype(np.int64), pos, matrix_to_quat(R))
     te = np.arange(0.02, SECONDS - 0.02, 1 / 120)
-    p = np.stack([np.interp(te, t, pos[:, k]) for k in range(3)], axis=1)
+    p = np.stack([np.interp(te - pos_lag, t, pos[:, k]) for k in range(3)], axis=1)
     R0 = R[0]
     q = (p - p[0]) @ R0  # first camera frame
     hv = q[:, :2] / 0.01 + 3.0
     ph = np.interp(te, t, phi)
     est = EstimateSeries((te * 1e9).astype(np.int64), hv[:, 0], hv[:, 1], -(ph - ph[0]))
+    return gt, est
+
+
+def test_arm_calibrates_on_first_arc() -> None:
+    gt, est = _arm_case()
     res = evaluate(gt, est, 'arm')
     assert res.metrics['median_pos_m'] < 1e-3
     assert res.metrics['median_roll_deg'] < 0.05
     assert res.series.calib.any() and not (res.series.calib & res.series.test).any()
+
+
+def test_lag_scan_finds_a_position_that_lags_the_roll() -> None:
+    gt, est = _arm_case(pos_lag=0.006)
+    offsets = np.arange(-10, 11) * 1e-3
+    base, curves = lag_scan(gt, est, 'arm', offsets)
+    assert abs(base) < 1e-3                      # the protocol aligns by the (unlagged) roll
+    pos = np.asarray(curves['median_pos_m'])
+    assert offsets[np.argmin(pos)] == pytest.approx(0.006, abs=1.1e-3)
+    assert pos.min() < 0.2 * pos[10]             # offset 0 = the protocol's error
+    assert np.argmin(curves['median_roll_deg']) == pytest.approx(10, abs=1)
+    with pytest.raises(ConfigError, match='finite offset'):
+        lag_scan(gt, est, 'arm', np.array([np.nan]))
 
 
 def test_umeyama_recovers_similarity_and_guards_reflection() -> None:

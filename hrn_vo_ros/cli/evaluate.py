@@ -4,7 +4,9 @@ Evaluates an estimate CSV (``t,h,v,r[,z]``, as ``hrn-vo run`` writes it) against
 ``groundtruth.txt`` with the paper's protocol (:mod:`hrn_vo_ros.core.evaluation`): lag by
 cross-correlation, 70/30 split, Umeyama calibration, median errors on the test part. Prints a
 table and, last, one JSON line (``--json``: the JSON line only). ``--plot OUT.png`` draws the
-calibrated trajectory against the ground truth.
+calibrated trajectory against the ground truth. ``--lag-scan MS`` (a diagnostic, not the
+protocol) re-evaluates with the lag moved by -MS..+MS in 1 ms steps and reports where the
+headline error is lowest (the JSON gets a ``lag_scan`` entry).
 """
 
 from __future__ import annotations
@@ -13,8 +15,11 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
+
 from hrn_vo_ros.cli.main import echo
-from hrn_vo_ros.core.evaluation import CALIB_MODES, EVAL_KINDS, EvalResult, evaluate
+from hrn_vo_ros.core.evaluation import CALIB_MODES, EVAL_KINDS, EvalResult, evaluate, lag_scan
+from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import read_groundtruth
 from hrn_vo_ros.io.estimates import read_estimates
 
@@ -34,6 +39,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                         '(default) or all of it')
     p.add_argument('--lag', type=float, default=None,
                    help='use this lag in seconds instead of estimating it')
+    p.add_argument('--lag-scan', type=int, default=0, metavar='MS',
+                   help='also evaluate with the lag moved by -MS..+MS ms (1 ms steps) and '
+                        'report where the headline error is lowest (diagnostic)')
     p.add_argument('--plot', type=Path, default=None, help='write a trajectory plot (PNG)')
     p.add_argument('--json', action='store_true', help='print only the JSON line')
     p.set_defaults(func=run)
@@ -56,13 +64,31 @@ def run(args: argparse.Namespace) -> int:
     """Evaluate, print, optionally plot."""
     gt = read_groundtruth(args.dataset)
     est = read_estimates(args.estimate)
+    if not 0 <= args.lag_scan <= 500:
+        raise ConfigError(f'--lag-scan {args.lag_scan}: give 0 (off) to 500 ms')
     res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag)
+    out = res.to_dict()
+    scan_text = ''
+    if args.lag_scan:
+        offsets_ms = np.arange(-args.lag_scan, args.lag_scan + 1)
+        _, curves = lag_scan(gt, est, args.kind, offsets_ms * 1e-3, calib=args.calib,
+                             lag_s=res.lag_s)
+        metric = TARGETS[args.kind][0]
+        values = curves[metric]
+        best = int(np.argmin(values))
+        out['lag_scan'] = {'metric': metric, 'offsets_ms': offsets_ms.tolist(),
+                           'values': [round(v, 6) for v in values],
+                           'best_offset_ms': int(offsets_ms[best])}
+        scan_text = (f'lag scan ({metric}): {values[args.lag_scan]:.4g} at the protocol lag, '
+                     f'lowest {values[best]:.4g} at {int(offsets_ms[best]):+d} ms from it')
     if args.plot is not None:
         from hrn_vo_ros.io.plots import plot_evaluation
         plot_evaluation(res, args.plot, title=f'{args.estimate.name} on {args.dataset.name}')
     if not args.json:
         echo(format_table(res))
+        if scan_text:
+            echo(scan_text)
         if args.plot is not None:
             echo(f'plot: {args.plot}')
-    echo(json.dumps(res.to_dict()))
+    echo(json.dumps(out))
     return 0
