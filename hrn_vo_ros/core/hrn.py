@@ -575,7 +575,7 @@ class _FastEngine:
             return np.asarray(out, np.complex128)
         return np.asarray((self.XH[name] * a[None, :]).sum(axis=1), np.complex128)
 
-    def book_encode(self, name: str, p: Real) -> Complex:
+    def book_encode(self, name: str, p: Real | Complex) -> Complex:
         """``X p`` for factor ``name``. Shapes: p (K,) → (n,)."""
         if self._full[name]:
             return np.asarray(sfft.fft(p[self._perm_enc[name]], workers=1, overwrite_x=True),
@@ -655,7 +655,7 @@ class _FastEngine:
         a complete DFT codebook has ``X X† = n I``, so it is ``phasor(a)``."""
         a = self.inputs[name]
         if not self._full[name]:
-            a = (self.X[name] * (self.XH[name] * a[None, :]).sum(axis=1)[None, :]).sum(axis=1)
+            a = self.book_encode(name, self.book_decode(name, a))
         return fhrr.phasor(a)
 
     def shift(self, name: str, delta: float) -> None:
