@@ -348,7 +348,7 @@ def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
     that many frames: the count is divided by ``cleanup.iterations_per_frame`` so that both
     start learning their maps on the same frame.
     """
-    per_frame = max(1, rcfg.cleanup.iterations_per_frame)
+    per_frame = rcfg.cleanup.iterations_per_frame       # >= 1 (validated)
     return BaselineConfig(width=rcfg.width, height=rcfg.height, mu1=rcfg.map.mu1,
                           mu2=rcfg.map.mu2,
                           block_iterations=rcfg.map.block_iterations // per_frame,
