@@ -47,7 +47,7 @@ sys.path.insert(0, str(ROOT))
 
 from hrn_vo_ros.core.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries  # noqa: E402
-from hrn_vo_ros.core.frames import Packetizer  # noqa: E402
+from hrn_vo_ros.core.frames import Packetizer, with_calibration  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate, SimulatorConfig  # noqa: E402
 from hrn_vo_ros.errors import ConfigError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
@@ -134,7 +134,7 @@ def run_baseline(case: Case, dataset: Path, out: Path) -> float:
                               packetizer={'sensor_width': width, 'sensor_height': height},
                               resonator={})
     bcfg = replace(config_like(rcfg), width=pcfg.width, height=pcfg.height)
-    packetizer = Packetizer(pcfg)
+    packetizer = Packetizer(with_calibration(pcfg, ecd.read_calib(dataset)))
     base = PhaseCorrelationBaseline(bcfg)
     rows = []
     for batch in ecd.iter_events(dataset, sensor_size=(width, height)):

@@ -10,6 +10,7 @@ Arguments:
     dataset: name of a parameter file in share/hrn_vo_ros/config (without .yaml).
     config: a parameter file path; overrides ``dataset``.
     events_topic: the EventPacket topic of the camera driver or bag.
+    camera_info_topic: the CameraInfo topic (read when the config rectifies without calib.*).
     imu_topic: the sensor_msgs/Imu topic (used with use_imu:=true).
     use_imu: fuse the gyro (sets the resonator's ``imu.enabled``).
     publish_tf: publish odom → base_link on /tf.
@@ -38,11 +39,14 @@ def _nodes(context, *args, **kwargs):
     use_imu = LaunchConfiguration('use_imu').perform(context).lower() == 'true'
     publish_tf = LaunchConfiguration('publish_tf').perform(context).lower() == 'true'
     events_topic = LaunchConfiguration('events_topic').perform(context)
+    camera_info_topic = LaunchConfiguration('camera_info_topic').perform(context)
     imu_topic = LaunchConfiguration('imu_topic').perform(context)
     bag = LaunchConfiguration('bag').perform(context)
     actions = [
         Node(package='hrn_vo_ros', executable='packetizer_node', name='packetizer_node',
-             parameters=[config], remappings=[('~/events', events_topic)], output='screen'),
+             parameters=[config], remappings=[('~/events', events_topic),
+                                                      ('~/camera_info', camera_info_topic)],
+             output='screen'),
         Node(package='hrn_vo_ros', executable='resonator_node', name='resonator_node',
              parameters=[config, {'imu.enabled': use_imu, 'publish_tf': publish_tf}],
              remappings=[('~/frames', '/packetizer_node/frames'), ('~/imu', imu_topic)],
@@ -62,6 +66,7 @@ def generate_launch_description():
         DeclareLaunchArgument('dataset', default_value='shapes_rotation'),
         DeclareLaunchArgument('config', default_value=''),
         DeclareLaunchArgument('events_topic', default_value='/event_camera/events'),
+        DeclareLaunchArgument('camera_info_topic', default_value='/event_camera/camera_info'),
         DeclareLaunchArgument('imu_topic', default_value='/imu'),
         DeclareLaunchArgument('use_imu', default_value='false'),
         DeclareLaunchArgument('publish_tf', default_value='false'),

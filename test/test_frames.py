@@ -7,8 +7,18 @@ import time
 import numpy as np
 import pytest
 
+from hrn_vo_ros.core.camera import distort_points, rectified_pixels, undistort_points
 from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.frames import downsample_lut, frames_from_events, Packetizer, PacketizerConfig
+from hrn_vo_ros.core.frames import (
+    CalibrationConfig,
+    downsample_lut,
+    frames_from_events,
+    Packetizer,
+    PacketizerConfig,
+    rectify_lut,
+    with_calibration,
+)
+from hrn_vo_ros.core.sequence import CameraCalibration
 from hrn_vo_ros.errors import ConfigError, DatasetError
 
 
@@ -102,3 +112,104 @@ def test_packetizing_rate_is_far_above_real_time(rng: np.random.Generator) -> No
         pk.push(ev[i:i + 100_000])
     rate = len(ev) / (time.perf_counter() - t0)
     assert rate > 3e6
+
+
+# ------------------------------------------------------------------------------------------
+# Rectification
+
+
+DAVIS = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.001, -0.002, 0.0))
+
+
+def _rectified(mode: str, calib: CameraCalibration = DAVIS, **kw: object) -> PacketizerConfig:
+    return with_calibration(PacketizerConfig(rectify=mode, **kw), calib)  # type: ignore[arg-type]
+
+
+def test_undistort_inverts_distort() -> None:
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-0.6, 0.6, 200), rng.uniform(-0.45, 0.45, 200)
+    u, v = distort_points(199.1, 198.8, 121.3, 89.6, DAVIS.dist, x, y)
+    x2, y2 = undistort_points(199.1, 198.8, 121.3, 89.6, DAVIS.dist, u, v)
+    np.testing.assert_allclose(x2, x, atol=1e-9)
+    np.testing.assert_allclose(y2, y, atol=1e-9)
+
+
+def test_equidistant_radius_is_focal_times_ray_angle() -> None:
+    xr, yr = rectified_pixels('equidistant', *DAVIS_ARGS)
+    # the ray of every sensor pixel (undistorted, normalised) and its angle from the axis
+    yy, xx = np.mgrid[0:180, 0:240].astype(float)
+    x, y = undistort_points(199.1, 198.8, 121.3, 89.6, DAVIS.dist, xx, yy)
+    theta = np.arctan(np.hypot(x, y))
+    radius = np.hypot((xr - 119.5) / 199.1, (yr - 89.5) / 198.8)
+    np.testing.assert_allclose(radius, theta, atol=1e-9)
+    # the direction about the centre is the ray's direction (a roll is an image rotation)
+    np.testing.assert_allclose(np.arctan2((yr - 89.5) / 198.8, (xr - 119.5) / 199.1),
+                               np.arctan2(y, x), atol=1e-9)
+    # pinhole keeps the ray's tangent instead
+    xp, yp = rectified_pixels('pinhole', *DAVIS_ARGS)
+    np.testing.assert_allclose((xp - 119.5) / 199.1, x, atol=1e-9)
+    assert np.hypot(xp - 119.5, yp - 89.5).max() > np.hypot(xr - 119.5, yr - 89.5).max() + 5
+
+
+DAVIS_ARGS = (240, 180, 199.1, 198.8, 121.3, 89.6, DAVIS.dist)
+
+
+def test_rectify_with_an_ideal_centred_camera_changes_nothing(rng: np.random.Generator) -> None:
+    ideal = CameraCalibration(240, 180, 200.0, 200.0, 119.5, 89.5)
+    ev = random_events(rng, 20_000)
+    t_ref, img_ref = frames_from_events(ev, PacketizerConfig())
+    t, img = frames_from_events(ev, _rectified('pinhole', ideal))
+    assert t.tolist() == t_ref.tolist()
+    np.testing.assert_array_equal(img, img_ref)
+
+
+def test_rectified_event_lands_where_the_lookup_says() -> None:
+    cfg = _rectified('equidistant', events_per_frame=1)
+    xr, yr = rectified_pixels('equidistant', *DAVIS_ARGS)
+    for x, y in [(0, 0), (239, 179), (121, 90), (17, 150)]:
+        ev = EventArray.from_arrays(np.array([5]), np.array([x]), np.array([y]), np.array([1]))
+        _, img = frames_from_events(ev, cfg)
+        (v,), (u,) = np.nonzero(img[0])
+        assert (u, v) == (int((xr[y, x] + 0.5) // 2.5), int((yr[y, x] + 0.5) // 2.5))
+    # the barrel-distorted corner moves outwards under pinhole rectification
+    xp, _ = rectified_pixels('pinhole', *DAVIS_ARGS)
+    assert xp[0, 0] < -5.0 < xr[0, 0]
+
+
+def test_events_rectified_outside_the_frame_are_counted_not_binned(
+        rng: np.random.Generator) -> None:
+    cfg = _rectified('pinhole', events_per_frame=1000)
+    lut = rectify_lut(cfg)
+    outside = np.flatnonzero(lut < 0)
+    assert 0.02 < len(outside) / lut.size < 0.2       # the barrel-distorted corners
+    ev = random_events(rng, 30_000)
+    n_out = int(np.isin(ev.y.astype(int) * 240 + ev.x, outside).sum())
+    pk = Packetizer(cfg)
+    frames = []
+    for i in range(0, len(ev), 7_000):
+        frames += pk.push(ev[i:i + 7_000])
+    assert pk.outside == n_out
+    assert len(frames) * 1000 + pk.pending == len(ev) - n_out
+    t_ref, img_ref = frames_from_events(ev, cfg)     # streaming = batch with rectification
+    assert [f.t_ns for f in frames] == t_ref.tolist()
+    np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
+    # equidistant keeps every DAVIS pixel in the frame
+    assert (rectify_lut(_rectified('equidistant')) >= 0).all()
+
+
+def test_rectification_needs_a_matching_calibration() -> None:
+    with pytest.raises(ConfigError, match='needs the camera calibration'):
+        Packetizer(PacketizerConfig(rectify='equidistant'))
+    with pytest.raises(ConfigError, match='rectify'):
+        PacketizerConfig(rectify='fisheye')
+    with pytest.raises(DatasetError, match='346x260 sensor'):
+        _rectified('pinhole', CameraCalibration(346, 260, 200.0, 200.0, 173.0, 130.0))
+    with pytest.raises(ConfigError, match='5 plumb-bob'):
+        CalibrationConfig(fx=1.0, fy=1.0, dist=(0.1,))
+    with pytest.raises(ConfigError, match='both'):
+        CalibrationConfig(fx=1.0)
+    # explicit calib wins over the dataset's; no rectification ignores the calibration
+    own = PacketizerConfig(rectify='pinhole', calib=CalibrationConfig(fx=150.0, fy=150.0))
+    assert with_calibration(own, DAVIS) is own
+    assert with_calibration(PacketizerConfig(), DAVIS) == PacketizerConfig()
+    assert _rectified('equidistant').calib.cx == 121.3

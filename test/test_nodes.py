@@ -15,10 +15,12 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import Image, Imu, JointState
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 
 from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig
+from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.sequence import CameraCalibration
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.eventpacket import encode_mono
 from hrn_vo_ros.nodes.common import qos
@@ -213,4 +215,69 @@ def test_tf_and_images_when_enabled() -> None:
         node.destroy_node()
         probe.destroy_node()
     finally:
+        rclpy.try_shutdown()
+
+
+def camera_info(calib: CameraCalibration | None) -> CameraInfo:
+    m = CameraInfo(width=240, height=180, distortion_model='plumb_bob')
+    if calib is not None:
+        m.k = [calib.fx, 0.0, calib.cx, 0.0, calib.fy, calib.cy, 0.0, 0.0, 1.0]
+        m.d = list(calib.dist)
+    return m
+
+
+def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Generator) -> None:
+    """Events before the (latched) camera_info are held, not lost; bad camera_info is rejected."""
+    calib = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.0, 0.0, 0.0))
+    rclpy.init()
+    node = PacketizerNode(parameter_overrides=[
+        Parameter('events_per_frame', value=PER_FRAME), Parameter('events_reliable', value=True),
+        Parameter('rectify', value='equidistant'), Parameter('diagnostics_period_s', value=0.2)])
+    probe = Node('probe')
+    try:
+        ev_pub = probe.create_publisher(EventPacket, '/packetizer_node/events', qos(1000))
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        info_pub = probe.create_publisher(CameraInfo, '/packetizer_node/camera_info', latched)
+        frames: list[Image] = []
+        diags: list[dict[str, str]] = []
+        probe.create_subscription(Image, '/packetizer_node/frames', frames.append, qos(1000))
+        probe.create_subscription(
+            DiagnosticArray, '/diagnostics',
+            lambda m: diags.append(ros_msgs.diagnostic_values(m)), 100)
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        ex.add_node(probe)
+
+        def wait(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+            end = time.monotonic() + timeout
+            while time.monotonic() < end and not cond():
+                ex.spin_once(timeout_sec=0.02)
+            return cond()
+
+        assert wait(lambda: ev_pub.get_subscription_count() > 0)
+        ev = random_events(rng, 6 * PER_FRAME + 50)
+        ev_pub.publish(packet(ev[:2500], 0))
+        ev_pub.publish(packet(ev[2500:], 1))
+        assert wait(lambda: any(d.get('events_held') == str(len(ev)) for d in diags))
+        assert not frames and diags[-1]['waiting_for_camera_info'] == 'True'
+        info_pub.publish(camera_info(None))                       # uncalibrated: rejected
+        assert wait(lambda: any(d.get('bad_camera_info') == '1' for d in diags))
+        assert not frames
+        info_pub.publish(camera_info(calib))                      # latched, as bags replay it
+        assert wait(lambda: len(frames) == 6)
+        cfg = with_calibration(PacketizerConfig(events_per_frame=PER_FRAME,
+                                                rectify='equidistant'), calib)
+        t_ref, images = frames_from_events(ev, cfg)
+        got = [ros_msgs.image_to_frame(m) for m in frames]
+        assert [t for t, _ in got] == t_ref.tolist()
+        assert all(np.array_equal(img, ref) for (_, img), ref in zip(got, images, strict=True))
+        # the held events were rectified: they differ from plain binning
+        _, plain = frames_from_events(ev, PacketizerConfig(events_per_frame=PER_FRAME))
+        assert not np.array_equal(plain, images)
+        assert wait(lambda: diags[-1].get('waiting_for_camera_info') == 'False'
+                    and diags[-1].get('events_held') == '0')
+    finally:
+        node.destroy_node()
+        probe.destroy_node()
         rclpy.try_shutdown()

@@ -7,7 +7,7 @@ import math
 from event_camera_msgs.msg import EventPacket
 import numpy as np
 import pytest
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import CameraInfo, Imu
 
 from hrn_vo_ros.core.events import EventArray
 from hrn_vo_ros.core.odometry import OdometryConfig, readout_to_pose
@@ -85,3 +85,26 @@ def test_readout_round_trip_and_diagnostics() -> None:
     d = ros_msgs.diagnostics(1, 'n', 'hw', 'warn', 'm', [('frames', 3), ('rate', '1.0')])
     assert d.status[0].level == b'\x01'
     assert ros_msgs.diagnostic_values(d) == {'frames': '3', 'rate': '1.0'}
+
+
+def test_camera_info_gives_the_plumb_bob_calibration_or_a_clear_error() -> None:
+    k = [199.1, 0.0, 121.3, 0.0, 198.8, 89.6, 0.0, 0.0, 1.0]
+    msg = CameraInfo(width=240, height=180, distortion_model='plumb_bob', k=k,
+                     d=[-0.12, 0.03, 0.001, 0.0, 0.0])
+    c = ros_msgs.camera_info_to_calibration(msg)
+    assert (c.width, c.height, c.fx, c.fy, c.cx, c.cy) == (240, 180, 199.1, 198.8, 121.3, 89.6)
+    assert c.dist == (-0.12, 0.03, 0.001, 0.0, 0.0)
+    short = CameraInfo(width=240, height=180, distortion_model='plumb_bob', k=k, d=[-0.1, 0.02])
+    assert ros_msgs.camera_info_to_calibration(short).dist == (-0.1, 0.02, 0.0, 0.0, 0.0)
+    pinhole = CameraInfo(width=240, height=180, k=k)
+    assert ros_msgs.camera_info_to_calibration(pinhole).dist == (0.0,) * 5
+    with pytest.raises(DecodeError, match='not calibrated'):
+        ros_msgs.camera_info_to_calibration(CameraInfo(width=240, height=180))
+    with pytest.raises(DecodeError, match='equidistant.*not supported'):
+        ros_msgs.camera_info_to_calibration(
+            CameraInfo(width=240, height=180, k=k, distortion_model='equidistant', d=[0.1] * 4))
+    with pytest.raises(DecodeError, match='past k3'):
+        ros_msgs.camera_info_to_calibration(CameraInfo(
+            width=240, height=180, k=k, distortion_model='rational_polynomial', d=[0.1] * 8))
+    with pytest.raises(DecodeError, match='size 0x180'):
+        ros_msgs.camera_info_to_calibration(CameraInfo(width=0, height=180, k=k))

@@ -119,6 +119,30 @@ def test_run_bad_inputs_name_the_problem(dataset: Path, tmp_path: Path,
     (short / 'events.txt').write_text('0.000001 1 2 1\n')
     assert main(['run', str(short), '--out', out]) == 3
     assert 'fewer events than one packet' in capsys.readouterr().err
+    # Rectification needs calib.txt.
+    assert main(['run', str(short), '--out', out, '--set', 'packetizer.rectify=pinhole']) == 3
+    assert 'calib.txt' in capsys.readouterr().err
+
+
+def test_run_rectifies_with_the_dataset_calibration(dataset: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """calib.txt is read for rectify; the rectified run still follows the motion."""
+    base = ['run', str(dataset), '--config', str(ROOT / 'config/shapes_rotation.yaml'),
+            '--quiet', '--out']
+    assert main([*base, str(tmp_path / 'plain.csv')]) == 0
+    assert main([*base, str(tmp_path / 'eq.csv'), '--set', 'packetizer.rectify=equidistant']) == 0
+    assert 'outside the frame' not in capsys.readouterr().out   # equidistant keeps every event
+    plain, eq = read_estimates(tmp_path / 'plain.csv'), read_estimates(tmp_path / 'eq.csv')
+    assert len(eq) == len(plain) == 60
+    assert not np.allclose(eq.h, plain.h)                  # the frames did change
+    # radius f * atan(rho) / rho shrinks the view a little: the same pan, slightly fewer pixels
+    assert abs(eq.h[-1] - 8.85) < 1.5 and abs(eq.r[-1] - 0.236) < 0.05
+    assert main([*base, str(tmp_path / 'pin.csv'), '--set', 'packetizer.rectify=pinhole',
+                 '--set', 'packetizer.calib.fx=200', '--set', 'packetizer.calib.fy=200',
+                 '--set', 'packetizer.calib.cx=119.5', '--set', 'packetizer.calib.cy=89.5',
+                 '--set', 'packetizer.calib.dist=[-0.3, 0, 0, 0, 0]']) == 0
+    # explicit calib wins over calib.txt (no distortion there): the corners leave the frame
+    assert 'events rectified outside the frame' in capsys.readouterr().out
 
 
 @pytest.mark.parametrize('name', OURS)

@@ -26,6 +26,7 @@ from rclpy.node import Node
 from hrn_vo_ros.errors import HrnVoError
 
 EVENTS_TOPIC = '/event_camera/events'
+CAMERA_INFO_TOPIC = '/event_camera/camera_info'
 IMU_TOPIC = '/imu'
 FRAMES_TOPIC = '/packetizer_node/frames'
 READOUT_TOPIC = '/resonator_node/readout'
@@ -76,7 +77,7 @@ def graph_ros_args(params_file: Path | None, *, imu: bool, overrides: dict[str, 
     # loaded machine, so replay loses no frame; live use keeps the node default.
     pk = ros_args(params_file, {'events_reliable': True, 'diagnostics_period_s': 0.25,
                                 'frames_depth': FRAMES_DEPTH, 'events_keep_all': paced},
-                  {'~/events': events_topic})
+                  {'~/events': events_topic, '~/camera_info': CAMERA_INFO_TOPIC})
     rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, 'frames_depth': FRAMES_DEPTH,
                  'max_pending_frames': FRAMES_DEPTH, 'imu_depth': 50 * FRAMES_DEPTH, **overrides}
     rs = ros_args(params_file, rs_params, {'~/frames': FRAMES_TOPIC, '~/imu': imu_topic})

@@ -25,7 +25,7 @@ from hrn_vo_ros.cli.progress import Progress
 from hrn_vo_ros.core.backends import BackendConfig, BACKENDS, make_backend, SpikingDiagnostics
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.evaluation import EstimateSeries
-from hrn_vo_ros.core.frames import Packetizer
+from hrn_vo_ros.core.frames import Packetizer, with_calibration
 from hrn_vo_ros.core.imu import GyroIntegrator
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError
@@ -100,6 +100,8 @@ def run(args: argparse.Namespace) -> int:
                                       resonator={**rs_over, **size, 'imu.focal_px': focal})
         rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
         gyro = GyroIntegrator(ecd.read_imu(dataset), rot)
+    if pcfg.rectify != 'none':
+        pcfg = with_calibration(pcfg, ecd.read_calib(dataset))
     packetizer = Packetizer(pcfg)
     hrn = make_backend(rcfg, rng=np.random.default_rng(args.seed), backend=backend)
     rows: list[tuple[int, float, float, float, float]] = []
@@ -131,6 +133,8 @@ def run(args: argparse.Namespace) -> int:
         echo('spiking, per iteration (last frame): ' + ', '.join(
             f'{k} {acc[k]:.4g}' for k in ('spikes', 'synops', 'neuron_updates', 'energy_uJ',
                                           'time_us') if k in acc))
+    if packetizer.outside:
+        echo(f'{packetizer.outside} events rectified outside the frame (not binned)')
     echo(f'{len(rows)} frames in {elapsed:.2f} s ({len(rows) / max(elapsed, 1e-9):.0f} '
          f'frames/s) -> {args.out}')
     return 0

@@ -13,21 +13,57 @@ than ``min_events_per_pixel - 1`` events (``min_events_per_pixel = 1`` for shape
 arm), else 0. The frame time is the midpoint of the first and last event of the packet (int64
 ns, rounded down).
 
+**Rectification** (``rectify``: ``none``, ``pinhole`` or ``equidistant``; :mod:`.camera`) moves
+each sensor pixel to its rectified continuous position before the same division and rounding, so
+the rounding happens once, at frame resolution. It is a per-sensor-pixel lookup table built from
+the calibration (``calib.*``: from the dataset's ``calib.txt`` in ``hrn-vo run``, from
+``camera_info`` in the packetizer node). Events whose rectified position falls outside the frame
+are not counted into packets; :attr:`Packetizer.outside` counts them.
+
 Packetizing is vectorised: one ``bincount`` (or one scatter when any event lights a pixel) over
 ``packet * H * W + pixel`` for all complete packets of a batch; no per-event Python.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.configbase import param, validate
+from hrn_vo_ros.core.camera import rectified_pixels, RECTIFY_MODES
+from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.events import EventArray
+from hrn_vo_ros.core.sequence import CameraCalibration
 from hrn_vo_ros.errors import ConfigError, DatasetError
+
+
+@dataclass(frozen=True, slots=True)
+class CalibrationConfig:
+    """Intrinsics of the sensor (``calib.txt`` / ``CameraInfo`` plumb-bob), for ``rectify``."""
+
+    fx: float = param(0.0, 'focal length x in sensor pixels (0: unknown, taken from the dataset '
+                      "calib.txt or the node's camera_info topic)", lo=0.0, hi=1e6)
+    fy: float = param(0.0, 'focal length y in sensor pixels (0: unknown)', lo=0.0, hi=1e6)
+    cx: float = param(0.0, 'principal point x in sensor pixels', lo=-1e6, hi=1e6)
+    cy: float = param(0.0, 'principal point y in sensor pixels', lo=-1e6, hi=1e6)
+    dist: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0, 0.0),
+                                    'distortion k1 k2 p1 p2 k3 (radial-tangential / plumb_bob)',
+                                    lo=-1e3, hi=1e3)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if len(self.dist) != 5:
+            raise ConfigError(f'calib.dist has {len(self.dist)} values; give the 5 plumb-bob '
+                              'coefficients k1 k2 p1 p2 k3')
+        if (self.fx > 0) != (self.fy > 0):
+            raise ConfigError('calib.fx and calib.fy must both be set (> 0) or both be 0')
+
+    @property
+    def known(self) -> bool:
+        """True when the focal lengths are set."""
+        return self.fx > 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,6 +81,10 @@ class PacketizerConfig:
                               lo=1.0, hi=1000.0, read_only=True)
     min_events_per_pixel: int = param(1, 'a frame pixel is 1 with at least this many events '
                                       '(1: ">0", shapes; 2: ">1", robot arm)', lo=1, hi=1000)
+    rectify: str = param('none', 'move events to an ideal camera before binning: none, pinhole '
+                         '(undistorted), equidistant (undistorted, radius = f * angle); '
+                         'needs calib', choices=RECTIFY_MODES, read_only=True)
+    calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
 
     def __post_init__(self) -> None:
         validate(self)
@@ -101,6 +141,9 @@ class _Binner:
         self.lut_x = downsample_lut(cfg.sensor_width, cfg.downsample).astype(np.int32)
         self.lut_y = (downsample_lut(cfg.sensor_height, cfg.downsample) * cfg.width).astype(
             np.int32)
+        self.lut: NDArray[np.int32] | None = None
+        if cfg.rectify != 'none':
+            self.lut = rectify_lut(cfg)
 
     def check(self, ev: EventArray) -> None:
         if len(ev) == 0:
@@ -112,10 +155,20 @@ class _Binner:
                    'sensor_width/sensor_height to the camera resolution')
             raise DatasetError(msg)
 
-    def pixels(self, ev: EventArray) -> NDArray[np.int32]:
-        out: NDArray[np.int32] = self.lut_x[ev.x]
-        out += self.lut_y[ev.y]
-        return out
+    def pixels(self, ev: EventArray) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+        """Flat frame pixel and time of every event that lands in the frame."""
+        if self.lut is None:
+            out: NDArray[np.int32] = self.lut_x[ev.x]
+            out += self.lut_y[ev.y]
+            return out, ev.t
+        flat = ev.y.astype(np.intp)
+        flat *= self.cfg.sensor_width
+        flat += ev.x
+        pix = self.lut[flat]
+        inside = pix >= 0
+        if inside.all():
+            return pix, ev.t
+        return pix[inside], ev.t[inside]
 
     def images(self, pix: NDArray[np.int32], n_packets: int) -> NDArray[np.uint8]:
         """Binary frames of ``n_packets`` consecutive full packets from flat pixel indices."""
@@ -130,6 +183,45 @@ class _Binner:
             counts = np.bincount(flat, minlength=n_packets * npx)
             out = (counts >= self.cfg.min_events_per_pixel).astype(np.uint8)
         return out.reshape(n_packets, self.h, self.w)
+
+
+def with_calibration(cfg: PacketizerConfig, calib: CameraCalibration) -> PacketizerConfig:
+    """``cfg`` with ``calib`` filled in from a dataset's calibration when it is still unknown.
+
+    Explicit ``calib.*`` values win; without rectification the config is returned unchanged.
+
+    Raises:
+        DatasetError: if the calibration is for another sensor size.
+    """
+    if cfg.rectify == 'none' or cfg.calib.known:
+        return cfg
+    if (calib.width, calib.height) != (cfg.sensor_width, cfg.sensor_height):
+        raise DatasetError(f'the calibration is for a {calib.width}x{calib.height} sensor, the '
+                           f'events for {cfg.sensor_width}x{cfg.sensor_height}')
+    return replace(cfg, calib=CalibrationConfig(fx=calib.fx, fy=calib.fy, cx=calib.cx,
+                                                cy=calib.cy, dist=tuple(calib.dist)))
+
+
+def rectify_lut(cfg: PacketizerConfig) -> NDArray[np.int32]:
+    """Flat frame pixel of every sensor pixel (``y * sensor_width + x``) under ``cfg.rectify``.
+
+    -1 marks sensor pixels whose rectified position lies outside the frame.
+
+    Raises:
+        ConfigError: if rectification is on and the calibration is unknown.
+    """
+    c = cfg.calib
+    if cfg.rectify != 'none' and not c.known:
+        raise ConfigError(f'rectify = {cfg.rectify} needs the camera calibration: set '
+                          'calib.fx/fy/cx/cy/dist (hrn-vo run reads calib.txt; the packetizer '
+                          'node reads camera_info)')
+    xr, yr = rectified_pixels(cfg.rectify, cfg.sensor_width, cfg.sensor_height, c.fx, c.fy,
+                              c.cx, c.cy, c.dist)
+    u = np.floor((xr + 0.5) / cfg.downsample)
+    v = np.floor((yr + 0.5) / cfg.downsample)
+    inside = (u >= 0) & (u < cfg.width) & (v >= 0) & (v < cfg.height)
+    flat = np.where(inside, v * cfg.width + u, -1)
+    return flat.astype(np.int32).ravel()
 
 
 def frames_from_events(ev: EventArray, cfg: PacketizerConfig
@@ -152,9 +244,10 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     b = _Binner(cfg)
     b.check(ev)
     k = cfg.events_per_frame
-    n = len(ev) // k
-    images = b.images(b.pixels(ev[:n * k]), n)
-    t = ev.t[:n * k]
+    pix, t = b.pixels(ev)
+    n = len(t) // k
+    images = b.images(pix, n)
+    t = t[:n * k]
     first, last = t[0::k], t[k - 1::k]
     return first + (last - first) // 2, images
 
@@ -176,11 +269,17 @@ class Packetizer:
         self._pend_t: list[NDArray[np.int64]] = []
         self._pending = 0
         self._last_t: int | None = None
+        self._outside = 0
 
     @property
     def pending(self) -> int:
         """Events waiting for their packet to fill up."""
         return self._pending
+
+    @property
+    def outside(self) -> int:
+        """Events so far whose rectified position fell outside the frame (not binned)."""
+        return self._outside
 
     def reset(self) -> None:
         """Drop pending events and the time-order memory."""
@@ -202,18 +301,17 @@ class Packetizer:
             raise DatasetError(msg)
         self._last_t = int(ev.t[-1])
         k = self.cfg.events_per_frame
-        pix = self._b.pixels(ev)
-        total = self._pending + len(ev)
+        pix, t = self._b.pixels(ev)
+        self._outside += len(ev) - len(t)
+        total = self._pending + len(t)
         if total < k:
             self._pend_pix.append(pix)
-            self._pend_t.append(ev.t)
+            self._pend_t.append(t)
             self._pending = total
             return []
         if self._pending:
             pix = np.concatenate([*self._pend_pix, pix])
-            t = np.concatenate([*self._pend_t, ev.t])
-        else:
-            t = ev.t
+            t = np.concatenate([*self._pend_t, t])
         n = total // k
         images = self._b.images(pix, n)
         used = n * k

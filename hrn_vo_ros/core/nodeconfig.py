@@ -29,6 +29,9 @@ class PacketizerNodeConfig:
                                   read_only=True)
     frames_depth: int = param(1000, 'Queue depth of the published frames (RELIABLE)',
                               lo=1, hi=100000, read_only=True)
+    camera_info_wait_events: int = param(20_000_000, 'With rectify and no calib.* parameters: '
+                                         'events held until the first camera_info (older ones '
+                                         'are dropped and counted)', lo=0, hi=1_000_000_000)
     diagnostics_period_s: float = param(1.0, 'Period of the diagnostics message, seconds',
                                         lo=0.01, hi=3600.0, read_only=True)
     log_throttle_s: float = param(5.0, 'Minimum time between two warnings of one kind, seconds',

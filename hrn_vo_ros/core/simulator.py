@@ -60,6 +60,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from hrn_vo_ros.core.camera import undistort_points
 from hrn_vo_ros.core.configbase import param, validate
 from hrn_vo_ros.core.events import EventArray
 from hrn_vo_ros.core.geometry import (
@@ -485,29 +486,8 @@ def scene_for(kind: str, seed: int, seconds: float,
 
 
 def _undistort_points(calib: CameraCalibration, u: F64, v: F64) -> tuple[F64, F64]:
-    """Normalised undistorted coordinates of distorted pixel coordinates (fixed point)."""
-    xd = (u - calib.cx) / calib.fx
-    yd = (v - calib.cy) / calib.fy
-    k1, k2, p1, p2, k3 = calib.dist
-    x, y = xd.copy(), yd.copy()
-    for _ in range(30):
-        r2 = x * x + y * y
-        radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 ** 3
-        dx = 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-        dy = p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-        x = (xd - dx) / radial
-        y = (yd - dy) / radial
-    return x, y
-
-
-def _distort(calib: CameraCalibration, x: F64, y: F64) -> tuple[F64, F64]:
-    """Pixel coordinates of normalised undistorted coordinates."""
-    k1, k2, p1, p2, k3 = calib.dist
-    r2 = x * x + y * y
-    radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 ** 3
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-    return calib.fx * xd + calib.cx, calib.fy * yd + calib.cy
+    """Normalised undistorted coordinates of distorted pixel coordinates."""
+    return undistort_points(calib.fx, calib.fy, calib.cx, calib.cy, calib.dist, u, v)
 
 
 class _Renderer:
