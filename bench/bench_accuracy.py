@@ -148,9 +148,11 @@ def run_baseline(case: Case, dataset: Path, out: Path) -> float:
     return time.perf_counter() - t0
 
 
-def evaluate(case: Case, dataset: Path, est: Path, plot: Path | None) -> dict[str, object]:
+def evaluate(case: Case, dataset: Path, est: Path, plot: Path | None,
+             convention: str = 'swing-twist') -> dict[str, object]:
     """``hrn-vo evaluate --json`` in a subprocess; returns the parsed JSON line."""
-    args = ['evaluate', str(dataset), str(est), '--kind', case.eval_kind, '--json']
+    args = ['evaluate', str(dataset), str(est), '--kind', case.eval_kind, '--json',
+            '--convention', convention]
     if plot is not None:
         args += ['--plot', str(plot)]
     res = _hrn_vo(*args)
@@ -183,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--no-hrn', action='store_true', help='baseline only')
     p.add_argument('--plots', action='store_true', help='write trajectory PNGs in --work')
     p.add_argument('--quick', action='store_true', help='one seed (101), 8 s sequences')
+    p.add_argument('--convention', choices=('swing-twist', 'euler'), default='swing-twist',
+                   help='rotation convention of the evaluation (hrn-vo evaluate --convention)')
     p.add_argument('--reuse', nargs='*', choices=('hrn', 'baseline'), default=[],
                    help='re-evaluate existing estimate CSVs of these methods instead of '
                         'running them again')
@@ -217,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
                     else:
                         wall = runner(case, ds, est)
                     plot = (work / 'plots' / f'{est.stem}.png') if args.plots else None
-                    res = evaluate(case, ds, est, plot)
+                    res = evaluate(case, ds, est, plot, args.convention)
                 except Exception as err:
                     print(f'  {method}: FAILED {err}', flush=True)
                     res, wall = {'metrics': {}, 'warnings': [str(err)[:200]]}, float('nan')

@@ -11,7 +11,7 @@ import pytest
 from hrn_vo_ros.cli.main import main
 from hrn_vo_ros.core.evaluation import EstimateSeries
 from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.geometry import euler_ptr_to_matrix, matrix_to_euler_ptr, matrix_to_quat
+from hrn_vo_ros.core.geometry import euler_ptr_to_matrix, matrix_to_quat, matrix_to_swing_twist
 from hrn_vo_ros.core.sequence import CameraCalibration, Sequence, Trajectory
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import write_sequence
@@ -67,7 +67,7 @@ def _dataset(tmp_path: Path) -> tuple[Path, Path]:
     te = np.arange(0.01, 19.99, 1 / 150)
     Re = euler_ptr_to_matrix(np.interp(te, t, pan), np.interp(te, t, tilt),
                              np.interp(te, t, roll))
-    p, q, r = matrix_to_euler_ptr(np.swapaxes(Re[:1], 1, 2) @ Re)
+    p, q, r = matrix_to_swing_twist(np.swapaxes(Re[:1], 1, 2) @ Re)   # the default convention
     est = EstimateSeries((te * 1e9).astype(np.int64), 80 * p, -80 * q, np.unwrap(r))
     return ds, write_estimates(tmp_path / 'est.csv', est)
 
@@ -86,6 +86,12 @@ def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
                  '--calib', 'full']) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == 1 and json.loads(lines[0])['calib'] == 'full'
+    # the same swing-twist estimate read as Euler angles misses the pan * tilt / 2 twist
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
+                 '--convention', 'euler']) == 0
+    euler = json.loads(capsys.readouterr().out.strip())
+    assert euler['calibration']['convention'] == 'euler'
+    assert euler['metrics']['median_angle_deg'] > 0.2
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '3']) == 0
     out = capsys.readouterr().out.strip().splitlines()
     assert any(line.startswith('lag scan (median_angle_deg)') for line in out)

@@ -17,10 +17,12 @@ from hrn_vo_ros.core.geometry import (
     euler_ptr_to_matrix,
     matrix_to_euler_ptr,
     matrix_to_quat,
+    matrix_to_swing_twist,
     quat_to_matrix,
     rotation_angle,
     so3_exp,
     so3_log,
+    swing_twist_to_matrix,
 )
 from hrn_vo_ros.core.sequence import Trajectory
 from hrn_vo_ros.errors import ConfigError, DatasetError
@@ -44,7 +46,8 @@ def _rotation_gt(world: np.ndarray) -> tuple[Trajectory, np.ndarray]:
                       matrix_to_quat(Rw)), t
 
 
-def _relative_angles(gt: Trajectory, t: np.ndarray) -> tuple[np.ndarray, ...]:
+def _relative_angles(gt: Trajectory, t: np.ndarray,
+                     convention: str = 'swing-twist') -> tuple[np.ndarray, ...]:
     """Pan/tilt/roll of R_gt(t0)^T R_gt(t) at est times t (exact, from the GT's own motion)."""
     gt_t = gt.t * 1e-9
     R = quat_to_matrix(gt.quat)
@@ -52,7 +55,8 @@ def _relative_angles(gt: Trajectory, t: np.ndarray) -> tuple[np.ndarray, ...]:
     i = np.clip(np.searchsorted(gt_t, t, side='right') - 1, 0, len(gt_t) - 2)
     a = (t - gt_t[i]) / (gt_t[i + 1] - gt_t[i])
     Ri = R[i] @ so3_exp(so3_log(np.swapaxes(R[i], 1, 2) @ R[i + 1]) * a[:, None])
-    pan, tilt, roll = matrix_to_euler_ptr(np.swapaxes(Ri[:1], 1, 2) @ Ri)
+    to_angles = matrix_to_euler_ptr if convention == 'euler' else matrix_to_swing_twist
+    pan, tilt, roll = to_angles(np.swapaxes(Ri[:1], 1, 2) @ Ri)
     return pan, tilt, np.unwrap(roll)
 
 
@@ -62,10 +66,11 @@ SIM = 60.0 * np.array([[np.cos(0.5), -np.sin(0.5)], [np.sin(0.5), np.cos(0.5)]])
 
 
 def _rotation_case(lag: float = 0.0, roll_sign: float = 1.0, noise: float = 0.0,
-                   seed: int = 0) -> tuple[Trajectory, EstimateSeries]:
+                   seed: int = 0, convention: str = 'swing-twist'
+                   ) -> tuple[Trajectory, EstimateSeries]:
     gt, _ = _rotation_gt(WORLD)
     t = np.arange(0.013, SECONDS - 0.02, 1 / 160)
-    pan, tilt, roll = _relative_angles(gt, t)
+    pan, tilt, roll = _relative_angles(gt, t, convention)
     hv = (SIM @ np.stack([pan, tilt])).T + np.array([4.0, -9.0])
     rng = np.random.default_rng(seed)
     hv += rng.normal(0, noise, hv.shape)
@@ -81,6 +86,20 @@ def test_perfect_rotation_estimate_has_no_error() -> None:
     assert abs(res.lag_s) < 2e-3
     assert res.roll_corr > 0.999
     assert res.warnings == ()
+
+
+@pytest.mark.parametrize('convention, other', [('swing-twist', 'euler'),
+                                               ('euler', 'swing-twist')])
+def test_rotation_convention_is_the_one_asked_for(convention: str, other: str) -> None:
+    """A perfect estimate in one convention is exact there; read in the other, its roll misses
+    the twist of about pan * tilt / 2 (pan, tilt up to ~0.35 rad here: up to ~3 deg)."""
+    gt, est = _rotation_case(convention=convention)
+    res = evaluate(gt, est, 'rotation', convention=convention)
+    assert res.metrics['median_angle_deg'] < 0.01
+    assert res.calibration['convention'] == convention
+    wrong = evaluate(gt, est, 'rotation', convention=other)
+    assert 0.2 < wrong.metrics['median_angle_deg'] < 3.0
+    assert wrong.metrics['median_roll_deg'] > 0.2
 
 
 def test_known_similarity_is_recovered() -> None:
@@ -232,6 +251,15 @@ def test_geometry_roundtrips() -> None:
     np.testing.assert_allclose(np.stack(back), np.stack([pan, tilt, roll]), atol=1e-9)
     q = matrix_to_quat(R)
     np.testing.assert_allclose(quat_to_matrix(q), R, atol=1e-9)
+    # swing-twist: round trip, the swing keeps the optical axis' own twist at zero, and an Euler
+    # pan-then-tilt carries a twist of about -pan * tilt / 2
+    Rs = swing_twist_to_matrix(pan, tilt, roll)
+    np.testing.assert_allclose(np.stack(matrix_to_swing_twist(Rs)), np.stack([pan, tilt, roll]),
+                               atol=1e-9)
+    np.testing.assert_allclose(Rs[:, :, 2], swing_twist_to_matrix(pan, tilt, 0.0)[:, :, 2],
+                               atol=1e-12)
+    _, _, twist = matrix_to_swing_twist(euler_ptr_to_matrix(0.1, 0.08, 0.0))
+    assert twist == pytest.approx(-0.1 * 0.08 / 2, rel=0.02)
     assert np.max(rotation_angle(np.swapaxes(R, 1, 2) @ R)) < 1e-7
 
 
@@ -257,3 +285,5 @@ def test_unknown_kind_and_calib() -> None:
         evaluate(gt, est, 'spin')
     with pytest.raises(ConfigError, match='calibration mode'):
         evaluate(gt, est, 'rotation', calib='all')
+    with pytest.raises(ConfigError, match='rotation convention'):
+        evaluate(gt, est, 'rotation', convention='zyx')

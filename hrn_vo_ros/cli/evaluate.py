@@ -1,4 +1,5 @@
-"""``hrn-vo evaluate DATASET est.csv --kind rotation|translation|arm [--calib last10|full]``.
+"""``hrn-vo evaluate DATASET est.csv --kind rotation|translation|arm [--calib last10|full]
+[--convention swing-twist|euler]``.
 
 Evaluates an estimate CSV (``t,h,v,r[,z]``, as ``hrn-vo run`` writes it) against the dataset's
 ``groundtruth.txt`` with the paper's protocol (:mod:`hrn_vo_ros.core.evaluation`): lag by
@@ -6,7 +7,9 @@ cross-correlation, 70/30 split, Umeyama calibration, median errors on the test p
 table and, last, one JSON line (``--json``: the JSON line only). ``--plot OUT.png`` draws the
 calibrated trajectory against the ground truth. ``--lag-scan MS`` (a diagnostic, not the
 protocol) re-evaluates with the lag moved by -MS..+MS in 1 ms steps and reports where the
-headline error is lowest (the JSON gets a ``lag_scan`` entry).
+headline error is lowest (the JSON gets a ``lag_scan`` entry). ``--convention`` chooses how
+pan, tilt and roll make a rotation (default ``swing-twist``, what an image shift and an image
+rotation measure; ``euler``: ``Ry(pan) Rx(tilt) Rz(roll)``).
 """
 
 from __future__ import annotations
@@ -18,7 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from hrn_vo_ros.cli.main import echo
-from hrn_vo_ros.core.evaluation import CALIB_MODES, EVAL_KINDS, EvalResult, evaluate, lag_scan
+from hrn_vo_ros.core.evaluation import (
+    CALIB_MODES,
+    EVAL_KINDS,
+    EvalResult,
+    evaluate,
+    lag_scan,
+    ROTATION_CONVENTIONS,
+)
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import read_groundtruth
 from hrn_vo_ros.io.estimates import read_estimates
@@ -37,6 +47,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument('--calib', choices=CALIB_MODES, default='last10',
                    help='rotation calibration segment: last 10 s of the training part '
                         '(default) or all of it')
+    p.add_argument('--convention', choices=ROTATION_CONVENTIONS, default='swing-twist',
+                   help='pan/tilt/roll convention: swing-twist (default: the swing points the '
+                        'optical axis, the roll turns about it) or euler (Ry Rx Rz)')
     p.add_argument('--lag', type=float, default=None,
                    help='use this lag in seconds instead of estimating it')
     p.add_argument('--lag-scan', type=int, default=0, metavar='MS',
@@ -50,6 +63,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def format_table(res: EvalResult) -> str:
     """A human-readable table of the result."""
     rows = [('kind', res.kind), ('calibration', str(res.calibration.get('segment', ''))),
+            ('rotation convention', str(res.calibration.get('convention', ''))),
             ('lag', f'{res.lag_s * 1e3:+.1f} ms'), ('roll correlation', f'{res.roll_corr:.3f}'),
             ('estimates used / calib / evaluated',
              f'{res.counts["used"]} / {res.counts["calibration"]} / {res.counts["evaluated"]}'),
@@ -66,13 +80,14 @@ def run(args: argparse.Namespace) -> int:
     est = read_estimates(args.estimate)
     if not 0 <= args.lag_scan <= 500:
         raise ConfigError(f'--lag-scan {args.lag_scan}: give 0 (off) to 500 ms')
-    res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag)
+    res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag,
+                   convention=args.convention)
     out = res.to_dict()
     scan_text = ''
     if args.lag_scan:
         offsets_ms = np.arange(-args.lag_scan, args.lag_scan + 1)
         _, curves = lag_scan(gt, est, args.kind, offsets_ms * 1e-3, calib=args.calib,
-                             lag_s=res.lag_s)
+                             lag_s=res.lag_s, convention=args.convention)
         metric = TARGETS[args.kind][0]
         values = curves[metric]
         best = int(np.argmin(values))

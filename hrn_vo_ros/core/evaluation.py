@@ -3,8 +3,10 @@
 Public API::
 
     EstimateSeries(t, h, v, r, z=None)   # raw readouts: t ns, h/v map px, r rad, z log scale
-    evaluate(gt, est, kind, *, calib='last10', lag_s=None, max_lag_s=0.5) -> EvalResult
-    lag_scan(gt, est, kind, offsets_s, *, calib='last10', lag_s=None) -> (lag_s, {metric: [..]})
+    evaluate(gt, est, kind, *, calib='last10', lag_s=None, max_lag_s=0.5,
+             convention='swing-twist') -> EvalResult
+    lag_scan(gt, est, kind, offsets_s, *, calib='last10', lag_s=None,
+             convention='swing-twist') -> (lag_s, {metric: [..]})
     umeyama(src, dst, *, with_scale=True, allow_reflection=False) -> (s, R, t)  # dst≈sR src+t
     estimate_lag(t_est, sig_est, t_gt, sig_gt, *, rate_hz=400, max_lag_s=0.5) -> (lag_s, corr)
     relative_position_errors(p_gt, R_gt, p_est, R_est, lengths) -> dict[length, errors %]
@@ -28,8 +30,8 @@ Protocol, step by step (all kinds):
    calibration segment; reflections are allowed because the sign convention of the network's
    image axes is arbitrary (``calibration['reflected']`` says whether one was used).
 
-   * rotation: target (pan, tilt) of ``R_rel`` (Euler convention ``R = Ry(pan) Rx(tilt)
-     Rz(roll)``, :mod:`hrn_vo_ros.core.geometry`); segment: the last 10 s of the training part
+   * rotation: target (pan, tilt) of ``R_rel`` in the rotation convention (below); segment:
+     the last 10 s of the training part
      (``calib='last10'``, the paper's main results) or all of it (``'full'``);
    * translation: target (x, y) of ``q`` on the whole training part (the paper's choice for
      shapes_translation: too little z motion otherwise), plus the depth model
@@ -43,8 +45,9 @@ Protocol, step by step (all kinds):
 5. **Errors** on the test 30 % (rotation, translation) or on everything after the first arc
    (arm):
 
-   * rotation: geodesic angle between ``R_rel`` and ``R_est = Ry(pan) Rx(tilt) Rz(roll)`` built
-     from the calibrated pan/tilt and the zeroed roll; median in degrees (the paper's metric);
+   * rotation: geodesic angle between ``R_rel`` and ``R_est`` built from the calibrated
+     pan/tilt and the zeroed roll in the rotation convention; median in degrees (the paper's
+     metric);
    * translation: ``|p_est - q|`` (m), median; relative position error in % of distance
      travelled (rpg_trajectory_evaluation, Zhang & Scaramuzza 2018): the test part is aligned
      with sim(3) (Umeyama, all poses), sub-trajectories of 10, 20, 30, 40, 50 % of the test path
@@ -54,6 +57,18 @@ Protocol, step by step (all kinds):
      The estimated orientation is ``Rz(roll)`` (pan/tilt are not estimated);
    * arm: ``|p_est - q|`` with p_est = (x, y, 0) (the estimate has no height), median in metres,
      and the median absolute roll error in degrees.
+
+**Rotation convention** (hrn_math.md §8.1 asks to state it; :mod:`hrn_vo_ros.core.geometry`).
+Pan, tilt and roll (of the ground truth, and of the estimate when it is turned back into a
+rotation) are **swing-twist** angles by default, ``R = exp([tilt, pan, 0]^) Rz(roll)``: the
+swing points the optical axis, the twist turns the camera about it. This is what an estimator
+of an image shift and of an image rotation about the image centre measures (after the
+equidistant rectification the shift is the swing angle times the focal length, and the image
+turns by the twist at its centre). ``convention='euler'`` uses ``R = Ry(pan) Rx(tilt)
+Rz(roll)`` instead, whose roll carries an extra twist of about ``-pan * tilt / 2`` that no
+image-plane estimator sees (0.3° at pan = tilt = 6°). The roll used for the lag and the
+zeroing follows the same convention. The geodesic error of a perfect estimate is zero in its
+own convention; the conventions agree to first order.
 
 Bad inputs (missing columns, fewer than 20 estimates, unsorted times, no time overlap, a
 calibration segment without samples) raise :class:`~hrn_vo_ros.errors.DatasetError` saying what
@@ -71,11 +86,13 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.geometry import (
     euler_ptr_to_matrix,
     matrix_to_euler_ptr,
+    matrix_to_swing_twist,
     quat_to_matrix,
     rot_z,
     rotation_angle,
     so3_exp,
     so3_log,
+    swing_twist_to_matrix,
 )
 from hrn_vo_ros.core.sequence import Trajectory
 from hrn_vo_ros.errors import ConfigError, DatasetError
@@ -84,6 +101,7 @@ F64 = NDArray[np.float64]
 EvalKind = Literal['rotation', 'translation', 'arm']
 EVAL_KINDS = ('rotation', 'translation', 'arm')
 CALIB_MODES = ('last10', 'full')
+ROTATION_CONVENTIONS = ('swing-twist', 'euler')
 MIN_SAMPLES = 20
 TRAIN_FRACTION = 0.7
 RPG_FRACTIONS = (0.1, 0.2, 0.3, 0.4, 0.5)
@@ -277,9 +295,27 @@ def _interp_gt(gt_t: F64, gt_R: F64, gt_p: F64, t: F64) -> tuple[F64, F64]:
     return R, p
 
 
-def _check_inputs(gt: Trajectory, est: EstimateSeries, kind: str, calib: str) -> None:
+def _to_angles(R: F64, convention: str) -> tuple[F64, F64, F64]:
+    """(pan, tilt, roll) of rotations in the convention (module docstring)."""
+    if convention == 'euler':
+        return matrix_to_euler_ptr(R)
+    return matrix_to_swing_twist(R)
+
+
+def _to_matrix(pan: F64, tilt: F64, roll: F64, convention: str) -> F64:
+    """Rotations of (pan, tilt, roll) in the convention (module docstring)."""
+    if convention == 'euler':
+        return euler_ptr_to_matrix(pan, tilt, roll)
+    return swing_twist_to_matrix(pan, tilt, roll)
+
+
+def _check_inputs(gt: Trajectory, est: EstimateSeries, kind: str, calib: str,
+                  convention: str) -> None:
     if kind not in EVAL_KINDS:
         raise ConfigError(f'unknown evaluation kind {kind!r}; use one of {", ".join(EVAL_KINDS)}')
+    if convention not in ROTATION_CONVENTIONS:
+        raise ConfigError(f'unknown rotation convention {convention!r}; use one of '
+                          f'{", ".join(ROTATION_CONVENTIONS)}')
     if calib not in CALIB_MODES:
         raise ConfigError(f'unknown calibration mode {calib!r}; use one of '
                           f'{", ".join(CALIB_MODES)}')
@@ -364,7 +400,8 @@ def _fit_depth(z: F64, target: F64) -> tuple[float, float, float]:
 
 
 def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'last10',
-             lag_s: float | None = None, max_lag_s: float = 0.5) -> EvalResult:
+             lag_s: float | None = None, max_lag_s: float = 0.5,
+             convention: str = 'swing-twist') -> EvalResult:
     """Evaluate a raw estimate against the ground truth with the paper's protocol.
 
     Args:
@@ -375,6 +412,7 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
             other kinds have fixed calibration segments, see the module docstring).
         lag_s: Use this lag instead of estimating it (seconds, + = estimate lags).
         max_lag_s: Largest lag searched.
+        convention: ``'swing-twist'`` or ``'euler'`` pan/tilt/roll (module docstring).
 
     Returns:
         The metrics, calibration, lag, counts, warnings and aligned series.
@@ -383,13 +421,13 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
         DatasetError: on bad or insufficient inputs (see the module docstring).
         ConfigError: on an unknown kind or calibration mode.
     """
-    _check_inputs(gt, est, kind, calib)
+    _check_inputs(gt, est, kind, calib, convention)
     warnings: list[str] = []
     gt_t = gt.t.astype(np.float64) * 1e-9
     gt_R = quat_to_matrix(gt.quat)
     gt_p = np.asarray(gt.pos, dtype=np.float64)
     t_raw = est.t.astype(np.float64) * 1e-9
-    _, _, roll_abs = matrix_to_euler_ptr(np.swapaxes(gt_R[:1], 1, 2) @ gt_R)
+    _, _, roll_abs = _to_angles(np.swapaxes(gt_R[:1], 1, 2) @ gt_R, convention)
     roll_abs = np.unwrap(roll_abs)
 
     # 1. lag (paper: cross-correlation of the roll at 400 Hz)
@@ -431,7 +469,7 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
     R_at, p_at = _interp_gt(gt_t, gt_R, gt_p, t)
     R_rel = np.swapaxes(R_at[:1], 1, 2) @ R_at
     q = np.einsum('ji,nj->ni', R_at[0], p_at - p_at[0])
-    pan_gt, tilt_gt, roll_gt = matrix_to_euler_ptr(R_rel)
+    pan_gt, tilt_gt, roll_gt = _to_angles(R_rel, convention)
     roll_gt = np.unwrap(roll_gt)
 
     # roll zeroed at the start (median over the first 0.1 s of estimates), not calibrated
@@ -446,7 +484,8 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
     train = t < split
     test = ~train
     hv = np.stack([h, v], axis=1)
-    cal_info: dict[str, float | bool | str] = {'roll_offset_rad': roll_offset}
+    cal_info: dict[str, float | bool | str] = {'roll_offset_rad': roll_offset,
+                                               'convention': convention}
 
     if kind == 'arm':
         t_start = float(gt_t[0])
@@ -484,7 +523,7 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
         target = np.stack([pan_gt, tilt_gt], axis=1)
         s, Rc, tc = umeyama(hv[calib_mask], target[calib_mask], allow_reflection=True)
         pt = (s * (Rc @ hv.T)).T + tc
-        R_est = euler_ptr_to_matrix(pt[:, 0], pt[:, 1], roll_est)
+        R_est = _to_matrix(pt[:, 0], pt[:, 1], roll_est, convention)
         err = rotation_angle(np.swapaxes(R_rel, 1, 2) @ R_est) * deg
         metrics['median_angle_deg'] = float(np.median(err[test]))
         metrics['mean_angle_deg'] = float(np.mean(err[test]))
@@ -542,7 +581,8 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
 
 def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
              calib: str = 'last10', lag_s: float | None = None,
-             max_lag_s: float = 0.5) -> tuple[float, dict[str, list[float]]]:
+             max_lag_s: float = 0.5,
+             convention: str = 'swing-twist') -> tuple[float, dict[str, list[float]]]:
     """Every metric with the time alignment moved by each offset (a diagnostic, not the
     protocol): how steeply the errors depend on the lag, and which lag each metric prefers.
 
@@ -551,7 +591,7 @@ def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
     away from offset 0.
 
     Args:
-        gt, est, kind, calib, max_lag_s: as for :func:`evaluate`.
+        gt, est, kind, calib, max_lag_s, convention: as for :func:`evaluate`.
         offsets_s: Offsets added to the lag, seconds (+ = the estimate lags more).
         lag_s: The lag the offsets are added to (None: estimated as :func:`evaluate` does).
 
@@ -564,11 +604,12 @@ def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
     offsets = np.asarray(offsets_s, dtype=np.float64).ravel()
     if offsets.size == 0 or not np.all(np.isfinite(offsets)):
         raise ConfigError('lag_scan needs at least one finite offset (seconds)')
-    base = (evaluate(gt, est, kind, calib=calib, max_lag_s=max_lag_s).lag_s if lag_s is None
-            else float(lag_s))
+    base = (evaluate(gt, est, kind, calib=calib, max_lag_s=max_lag_s,
+                     convention=convention).lag_s if lag_s is None else float(lag_s))
     curves: dict[str, list[float]] = {}
     for d in offsets:
-        res = evaluate(gt, est, kind, calib=calib, lag_s=base + float(d))
+        res = evaluate(gt, est, kind, calib=calib, lag_s=base + float(d),
+                       convention=convention)
         for name, value in res.metrics.items():
             curves.setdefault(name, []).append(float(value))
     return base, curves

@@ -9,10 +9,19 @@ Conventions (used everywhere in the package):
   vertical axis, then tilt about the new horizontal axis, then roll about the optical axis).
   Positive pan turns the optical axis towards +x (right), positive tilt towards -y (up),
   positive roll turns the camera clockwise about its optical axis as seen from behind.
+* **Swing-twist** pan, tilt, roll mean ``R = exp([tilt, pan, 0]^) @ Rz(roll)``: a twist (roll)
+  about the optical axis, then the swing, the shortest rotation that points the optical axis
+  to its new direction (about an axis in the image plane). For small angles both conventions
+  agree; they differ by a twist of about ``pan * tilt / 2`` (``Ry(pan) Rx(tilt)`` carries it,
+  the swing does not). An estimator that reads an image shift (h, v) and an image rotation
+  about the image centre measures the swing and the twist (an equidistant image shifts by
+  ``f * angle`` along the swing, and turns by the twist at its centre), which is why the
+  evaluation uses this convention by default (:mod:`hrn_vo_ros.core.evaluation`).
 
 Public API: :func:`rot_x`, :func:`rot_y`, :func:`rot_z`, :func:`euler_ptr_to_matrix`,
-:func:`matrix_to_euler_ptr`, :func:`quat_to_matrix`, :func:`matrix_to_quat`,
-:func:`rotation_angle`, :func:`so3_log`, :func:`so3_exp`.
+:func:`matrix_to_euler_ptr`, :func:`swing_twist_to_matrix`, :func:`matrix_to_swing_twist`,
+:func:`quat_to_matrix`, :func:`matrix_to_quat`, :func:`rotation_angle`, :func:`so3_log`,
+:func:`so3_exp`.
 """
 
 from __future__ import annotations
@@ -71,6 +80,40 @@ def matrix_to_euler_ptr(R: F64) -> tuple[F64, F64, F64]:
     tilt = np.arcsin(np.clip(-R[..., 1, 2], -1.0, 1.0))
     pan = np.arctan2(R[..., 0, 2], R[..., 2, 2])
     roll = np.arctan2(R[..., 1, 0], R[..., 1, 1])
+    return pan, tilt, roll
+
+
+def swing_twist_to_matrix(pan: ArrayLike, tilt: ArrayLike, roll: ArrayLike) -> F64:
+    """``exp([tilt, pan, 0]^) @ Rz(roll)``: the swing (pan, tilt) after the twist (roll).
+
+    Shapes:
+        pan, tilt, roll: (...,) radians, broadcastable; returns (..., 3, 3).
+    """
+    p, t, r = np.broadcast_arrays(np.asarray(pan, dtype=np.float64),
+                                  np.asarray(tilt, dtype=np.float64),
+                                  np.asarray(roll, dtype=np.float64))
+    swing = so3_exp(np.stack([t, p, np.zeros_like(p)], axis=-1))
+    return swing @ rot_z(r)
+
+
+def matrix_to_swing_twist(R: F64) -> tuple[F64, F64, F64]:
+    """Inverse of :func:`swing_twist_to_matrix` (swing angle < 180°; no unwrapping).
+
+    The swing turns the optical axis ``e_z`` to ``d = R e_z`` about ``e_z x d``; the twist is what
+    is left, ``Rz(roll) = swing^T R``.
+
+    Shapes:
+        R: (..., 3, 3); returns three (...,) arrays in radians.
+    """
+    Ra = np.asarray(R, dtype=np.float64)
+    d = Ra[..., :, 2]
+    angle = np.arccos(np.clip(d[..., 2], -1.0, 1.0))
+    sin_angle = np.hypot(d[..., 0], d[..., 1])
+    safe = sin_angle > 1e-12
+    k = np.where(safe, angle / np.where(safe, sin_angle, 1.0), 1.0)
+    pan, tilt = d[..., 0] * k, -d[..., 1] * k
+    twist = np.swapaxes(swing_twist_to_matrix(pan, tilt, np.zeros_like(pan)), -1, -2) @ Ra
+    roll = np.arctan2(twist[..., 1, 0], twist[..., 0, 0])
     return pan, tilt, roll
 
 
