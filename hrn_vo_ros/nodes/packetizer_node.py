@@ -109,6 +109,10 @@ class PacketizerNode(Node):
 
     def _hold(self, ev: EventArray) -> None:
         """Keep events until camera_info arrives, dropping the oldest beyond the limit."""
+        self.get_logger().info(
+            'holding events until a camera_info arrives on '
+            f'{self.resolve_topic_name("~/camera_info")} (rectify '
+            f'{self._algo.config.rectify}, no calib.* parameters)', once=True)
         self._waiting.append(ev)
         self._waiting_n += len(ev)
         limit = self._opts.config.camera_info_wait_events
@@ -119,7 +123,7 @@ class PacketizerNode(Node):
             dropped = self.stats.counts['dropped_waiting_for_camera_info']
             self.get_logger().warning(
                 f'no camera_info yet ({dropped} events dropped so far): publish it on '
-                '~/camera_info or set the calib.* parameters',
+                '~/camera_info, set the calib.* parameters or set rectify to none',
                 throttle_duration_sec=self._opts.config.log_throttle_s)
 
     def _on_events(self, msg: EventPacket) -> None:
