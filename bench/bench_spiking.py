@@ -46,7 +46,7 @@ from hrn_vo_ros.cli.run import parse_overrides  # noqa: E402
 from hrn_vo_ros.core.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.configbase import from_dict  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries, evaluate  # noqa: E402
-from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig  # noqa: E402
+from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig, with_calibration  # noqa: E402
 from hrn_vo_ros.core.hrn import ResonatorConfig  # noqa: E402
 from hrn_vo_ros.core.sequence import Trajectory  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate  # noqa: E402
@@ -68,15 +68,18 @@ def seeds_arg(text: str) -> list[int]:
     return out
 
 
-def load(seed: int, seconds: float, cache: Path | None
+def load(seed: int, seconds: float, cache: Path | None, pcfg: PacketizerConfig
          ) -> tuple[np.ndarray, np.ndarray, Trajectory]:
-    """Frames (t, images) and ground truth of simulated rotation sequence ``seed``."""
-    path = None if cache is None else cache / f'rotation_{seconds:g}s_seed{seed}.npz'
+    """Frames (t, images) and ground truth of simulated rotation sequence ``seed``, packetized
+    (and rectified) with the config's packetizer settings and the sequence's calibration, as
+    ``hrn-vo run`` does."""
+    name = f'rotation_{seconds:g}s_seed{seed}_{pcfg.events_per_frame}_{pcfg.rectify}.npz'
+    path = None if cache is None else cache / name
     if path is not None and path.exists():
         d = np.load(path)
         return d['t'], d['imgs'], Trajectory(d['gt_t'], d['gt_pos'], d['gt_quat'])
     seq = simulate('rotation', seconds, seed=seed)
-    t, imgs = frames_from_events(seq.events, PacketizerConfig())
+    t, imgs = frames_from_events(seq.events, with_calibration(pcfg, seq.calib))
     gt = seq.groundtruth
     assert gt is not None
     if path is not None:
@@ -169,18 +172,19 @@ def main() -> int:
                    **rs_over}
     if args.config is None and not args.synthetic:   # the tuned config, as hrn-vo run uses
         args.config = ROOT / 'config' / 'shapes_rotation.yaml'
-    cfg = load_configs(args.config, resonator=rs_over)[1]
+    pcfg, cfg = load_configs(args.config, resonator=rs_over)
     spk = BackendConfig('spiking', from_dict(SpikingConfig, sp_over))
     flt = BackendConfig('float')
     print(f'resonator: {cfg.width}x{cfg.height}, nonlinearity {cfg.cleanup.nonlinearity}, '
-          f'gamma {cfg.cleanup.gamma}; spiking: {spk.spiking}')
+          f'gamma {cfg.cleanup.gamma}; packetizer: rectify {pcfg.rectify}; spiking: '
+          f'{spk.spiking}')
     rows = []
     times_f: list[np.ndarray] = []
     times_s: list[np.ndarray] = []
     first: tuple[np.ndarray, np.ndarray, Any, np.ndarray, float] | None = None
     for seed in args.seeds:
-        t, imgs, gt = load_synthetic(seed) if args.synthetic else load(seed, args.seconds,
-                                                                         args.cache)
+        t, imgs, gt = (load_synthetic(seed) if args.synthetic
+                       else load(seed, args.seconds, args.cache, pcfg))
         if args.frames:
             t, imgs = t[:args.frames], imgs[:args.frames]
         ef, dtf, _ = run(cfg, flt, t, imgs, seed)
