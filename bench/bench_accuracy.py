@@ -46,7 +46,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from hrn_vo_ros.core.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
-from hrn_vo_ros.core.evaluation import EstimateSeries  # noqa: E402
+from hrn_vo_ros.core.evaluation import EstimateSeries, ROTATION_CONVENTIONS  # noqa: E402
 from hrn_vo_ros.core.frames import Packetizer, with_calibration  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate, SimulatorConfig  # noqa: E402
 from hrn_vo_ros.errors import ConfigError  # noqa: E402
@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--no-hrn', action='store_true', help='baseline only')
     p.add_argument('--plots', action='store_true', help='write trajectory PNGs in --work')
     p.add_argument('--quick', action='store_true', help='one seed (101), 8 s sequences')
-    p.add_argument('--convention', choices=('swing-twist', 'euler'), default='swing-twist',
+    p.add_argument('--convention', choices=ROTATION_CONVENTIONS, default='swing-twist',
                    help='rotation convention of the evaluation (hrn-vo evaluate --convention)')
     p.add_argument('--reuse', nargs='*', choices=('hrn', 'baseline'), default=[],
                    help='re-evaluate existing estimate CSVs of these methods instead of '

@@ -77,11 +77,12 @@ to change.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from hrn_vo_ros.core.geometry import (
     euler_ptr_to_matrix,
@@ -101,7 +102,13 @@ F64 = NDArray[np.float64]
 EvalKind = Literal['rotation', 'translation', 'arm']
 EVAL_KINDS = ('rotation', 'translation', 'arm')
 CALIB_MODES = ('last10', 'full')
-ROTATION_CONVENTIONS = ('swing-twist', 'euler')
+# rotation convention -> (R -> (pan, tilt, roll), (pan, tilt, roll) -> R); module docstring
+_CONVENTIONS: dict[str, tuple[Callable[[F64], tuple[F64, F64, F64]],
+                              Callable[[ArrayLike, ArrayLike, ArrayLike], F64]]] = {
+    'swing-twist': (matrix_to_swing_twist, swing_twist_to_matrix),
+    'euler': (matrix_to_euler_ptr, euler_ptr_to_matrix),
+}
+ROTATION_CONVENTIONS = tuple(_CONVENTIONS)
 MIN_SAMPLES = 20
 TRAIN_FRACTION = 0.7
 RPG_FRACTIONS = (0.1, 0.2, 0.3, 0.4, 0.5)
@@ -295,20 +302,6 @@ def _interp_gt(gt_t: F64, gt_R: F64, gt_p: F64, t: F64) -> tuple[F64, F64]:
     return R, p
 
 
-def _to_angles(R: F64, convention: str) -> tuple[F64, F64, F64]:
-    """(pan, tilt, roll) of rotations in the convention (module docstring)."""
-    if convention == 'euler':
-        return matrix_to_euler_ptr(R)
-    return matrix_to_swing_twist(R)
-
-
-def _to_matrix(pan: F64, tilt: F64, roll: F64, convention: str) -> F64:
-    """Rotations of (pan, tilt, roll) in the convention (module docstring)."""
-    if convention == 'euler':
-        return euler_ptr_to_matrix(pan, tilt, roll)
-    return swing_twist_to_matrix(pan, tilt, roll)
-
-
 def _check_inputs(gt: Trajectory, est: EstimateSeries, kind: str, calib: str,
                   convention: str) -> None:
     if kind not in EVAL_KINDS:
@@ -427,7 +420,8 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
     gt_R = quat_to_matrix(gt.quat)
     gt_p = np.asarray(gt.pos, dtype=np.float64)
     t_raw = est.t.astype(np.float64) * 1e-9
-    _, _, roll_abs = _to_angles(np.swapaxes(gt_R[:1], 1, 2) @ gt_R, convention)
+    to_angles, to_matrix = _CONVENTIONS[convention]
+    _, _, roll_abs = to_angles(np.swapaxes(gt_R[:1], 1, 2) @ gt_R)
     roll_abs = np.unwrap(roll_abs)
 
     # 1. lag (paper: cross-correlation of the roll at 400 Hz)
@@ -469,7 +463,7 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
     R_at, p_at = _interp_gt(gt_t, gt_R, gt_p, t)
     R_rel = np.swapaxes(R_at[:1], 1, 2) @ R_at
     q = np.einsum('ji,nj->ni', R_at[0], p_at - p_at[0])
-    pan_gt, tilt_gt, roll_gt = _to_angles(R_rel, convention)
+    pan_gt, tilt_gt, roll_gt = to_angles(R_rel)
     roll_gt = np.unwrap(roll_gt)
 
     # roll zeroed at the start (median over the first 0.1 s of estimates), not calibrated
@@ -523,7 +517,7 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
         target = np.stack([pan_gt, tilt_gt], axis=1)
         s, Rc, tc = umeyama(hv[calib_mask], target[calib_mask], allow_reflection=True)
         pt = (s * (Rc @ hv.T)).T + tc
-        R_est = _to_matrix(pt[:, 0], pt[:, 1], roll_est, convention)
+        R_est = to_matrix(pt[:, 0], pt[:, 1], roll_est)
         err = rotation_angle(np.swapaxes(R_rel, 1, 2) @ R_est) * deg
         metrics['median_angle_deg'] = float(np.median(err[test]))
         metrics['mean_angle_deg'] = float(np.mean(err[test]))
