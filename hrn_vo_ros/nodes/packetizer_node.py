@@ -69,10 +69,12 @@ class PacketizerNode(Node):
                                  qos(opts.events_depth, reliable=opts.events_reliable,
                                      keep_all=opts.events_keep_all))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
+        waiting = ('' if self._packetizer is not None else
+                   ' (no calib.* parameters: events are held until a camera_info arrives on '
+                   f'{self.resolve_topic_name("~/camera_info")})')
         self.get_logger().info(
             f'{cfg.events_per_frame} events per frame, {cfg.sensor_width}x{cfg.sensor_height} '
-            f'-> {cfg.width}x{cfg.height}, rectify {cfg.rectify}'
-            f'{" (waiting for camera_info)" if self._packetizer is None else ""}, events '
+            f'-> {cfg.width}x{cfg.height}, rectify {cfg.rectify}{waiting}, events '
             f'{"reliable" if opts.events_reliable else "best effort"}')
 
     @staticmethod
@@ -109,10 +111,6 @@ class PacketizerNode(Node):
 
     def _hold(self, ev: EventArray) -> None:
         """Keep events until camera_info arrives, dropping the oldest beyond the limit."""
-        self.get_logger().info(
-            'holding events until a camera_info arrives on '
-            f'{self.resolve_topic_name("~/camera_info")} (rectify '
-            f'{self._algo.config.rectify}, no calib.* parameters)', once=True)
         self._waiting.append(ev)
         self._waiting_n += len(ev)
         limit = self._opts.config.camera_info_wait_events
