@@ -69,11 +69,15 @@ def main() -> None:
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     frames = moving_frames(args.steps + 1, rng)
-    _, cfg = load_configs(args.config, resonator={'map.block_iterations': 10})
+    over: dict[str, object] = {'map.block_iterations': 10}
+    if not load_configs(args.config)[1].focal_px:   # as hrn-vo run: DAVIS240C fx / downsample
+        over['focal_px'] = 199.1 / 2.5
+    _, cfg = load_configs(args.config, resonator=over)
     fast = HRN(cfg, rng=np.random.default_rng(1))
     g = fast.geometry
     print(f'config {args.config.name}: {cfg.width}x{cfg.height} frames on a '
-          f'{g.canvas_width}x{g.canvas_height} canvas, factors h/v/r, '
+          f'{g.canvas_width}x{g.canvas_height} canvas, factors h/v/r, sphere correction '
+          f'{"on" if cfg.sphere.enabled else "off"}, '
           f'log-polar {cfg.logpolar.n_theta}x{cfg.logpolar.n_rho}, single thread')
 
     f_wall, f_cpu = time_steps(fast, frames)
@@ -81,7 +85,7 @@ def main() -> None:
           f'(median of {args.steps}; target <= 1.5 ms)')
 
     t0 = time.perf_counter()
-    dcfg = load_configs(args.config, resonator={'map.block_iterations': 10, 'path': 'dense'})[1]
+    dcfg = load_configs(args.config, resonator={**over, 'path': 'dense'})[1]
     dense = HRN(dcfg, rng=np.random.default_rng(1), dense_dtype=np.complex64)
     print(f"dense build : {time.perf_counter() - t0:6.1f} s (Λ, Λ', Φ as complex64 matrices)")
     d_wall, d_cpu = time_steps(dense, frames[:args.dense_steps + 1])

@@ -173,6 +173,11 @@ def main() -> int:
     if args.config is None and not args.synthetic:   # the tuned config, as hrn-vo run uses
         args.config = ROOT / 'config' / 'shapes_rotation.yaml'
     pcfg, cfg = load_configs(args.config, resonator=rs_over)
+    if cfg.sphere.enabled and not cfg.focal_px and not args.synthetic:
+        # as hrn-vo run: fx / downsample of the simulated camera (calib.txt)
+        fx = simulate('rotation', 0.01, seed=0).calib.fx
+        pcfg, cfg = load_configs(args.config,
+                                 resonator={**rs_over, 'focal_px': fx / pcfg.downsample})
     spk = BackendConfig('spiking', from_dict(SpikingConfig, sp_over))
     flt = BackendConfig('float')
     print(f'resonator: {cfg.width}x{cfg.height}, nonlinearity {cfg.cleanup.nonlinearity}, '

@@ -108,11 +108,11 @@ def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
     frame = event_frame(scene, (0, 0, 0, 0), rng)
-    hrn = make({'cleanup': {'gamma': 1.0}, 'imu': {'focal_px': FOCAL}})
+    hrn = make({'cleanup': {'gamma': 1.0}, 'focal_px': FOCAL})
     for i in range(20):
         e0 = hrn.step(frame, i)
     hrn2 = HRN(from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.0},
-                                           'imu': {'focal_px': FOCAL}}),
+                                           'focal_px': FOCAL}),
                rng=np.random.default_rng(1))
     hrn2._engine, hrn2._started, hrn2._point = hrn._engine, True, hrn._point
     hrn2._engine.cfg = hrn2.cfg
@@ -125,8 +125,7 @@ def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
 def test_imu_fusion_helps_on_fast_motion() -> None:
     """Large inter-frame motion (about 3 px and 3 deg per frame): the gyro keeps the lock."""
     traj = trajectory(240, amp_xy=18.0, amp_roll=0.6, period=40.0)
-    base = {'cleanup': {'gamma': 0.5}, 'map': {'learn': False},
-            'imu': {'focal_px': FOCAL}}
+    base = {'cleanup': {'gamma': 0.5}, 'map': {'learn': False}, 'focal_px': FOCAL}
     plain = track(make(base), traj)
     fused = track(make(base), traj, imu=True)
     e_plain = np.median(np.abs(plain[20:, :3] - traj[20:, :3]), axis=0)
@@ -237,7 +236,7 @@ def test_bad_inputs_and_configs() -> None:
     hrn.step(frame, 0)
     with pytest.raises(ConfigError, match='focal_px'):
         hrn.step(frame, 1, gyro_delta=np.zeros(3))
-    imu_hrn = make({'imu': {'focal_px': 80.0}})
+    imu_hrn = make({'focal_px': 80.0})
     imu_hrn.step(frame, 0)
     with pytest.raises(TrackingError, match='gyro_delta'):
         imu_hrn.step(frame, 1, gyro_delta=np.zeros(2))
@@ -325,7 +324,7 @@ def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float) -> None
     scene = random_scene(rng)
     hrn = make({'map': {'block_iterations': 0},
                 'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
-                'imu': {'focal_px': FOCAL, 'gate_deg': gate}})
+                'focal_px': FOCAL, 'imu': {'gate_deg': gate}})
     still = np.zeros(3)
     for i in range(30):
         hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i, gyro_delta=still)

@@ -56,7 +56,7 @@ class Graph:
         self.packetizer = PacketizerNode(parameter_overrides=params, cli_args=remap)
         self.resonator = ResonatorNode(cli_args=remap, parameter_overrides=[
             Parameter('diagnostics_period_s', value=0.2), Parameter('imu.enabled', value=imu),
-            Parameter('imu.focal_px', value=80.0), Parameter('imu_timeout_s', value=0.3)])
+            Parameter('focal_px', value=80.0), Parameter('imu_timeout_s', value=0.3)])
         self.probe = Node('probe')
         self.ev_pub = self.probe.create_publisher(EventPacket, '/packetizer_node/events',
                                                   qos(1000))

@@ -129,7 +129,11 @@ def test_run_rectifies_with_the_dataset_calibration(dataset: Path, tmp_path: Pat
     """calib.txt is read for rectify; the rectified run still follows the motion."""
     base = ['run', str(dataset), '--config', str(ROOT / 'config/shapes_rotation.yaml'),
             '--quiet', '--out']
-    assert main([*base, str(tmp_path / 'plain.csv'), '--set', 'packetizer.rectify=none']) == 0
+    # the sphere correction assumes equidistant frames: refused with any other rectification
+    assert main([*base, str(tmp_path / 'x.csv'), '--set', 'packetizer.rectify=none']) == 2
+    assert 'needs equidistant-rectified frames' in capsys.readouterr().err
+    assert main([*base, str(tmp_path / 'plain.csv'), '--set', 'packetizer.rectify=none',
+                 '--set', 'sphere.enabled=false']) == 0
     assert main([*base, str(tmp_path / 'eq.csv')]) == 0     # the config's rectify: equidistant
     assert 'outside the frame' not in capsys.readouterr().out   # equidistant keeps every event
     plain, eq = read_estimates(tmp_path / 'plain.csv'), read_estimates(tmp_path / 'eq.csv')
@@ -138,6 +142,7 @@ def test_run_rectifies_with_the_dataset_calibration(dataset: Path, tmp_path: Pat
     # radius f * atan(rho) / rho shrinks the view a little: the same pan, slightly fewer pixels
     assert abs(eq.h[-1] - 8.85) < 1.5 and abs(eq.r[-1] - 0.236) < 0.05
     assert main([*base, str(tmp_path / 'pin.csv'), '--set', 'packetizer.rectify=pinhole',
+                 '--set', 'sphere.enabled=false',
                  '--set', 'packetizer.calib.fx=200', '--set', 'packetizer.calib.fy=200',
                  '--set', 'packetizer.calib.cx=119.5', '--set', 'packetizer.calib.cy=89.5',
                  '--set', 'packetizer.calib.dist=[-0.3, 0, 0, 0, 0]']) == 0

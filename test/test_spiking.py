@@ -249,7 +249,7 @@ def test_spiking_imu_prediction_shifts_the_state_spikes_like_the_float_backend()
     from hrn_vo_ros.core.hrn import HRN
     focal = 80.0
     cfg = from_dict(ResonatorConfig, {'map': {'learn': False},
-                                      'imu': {'enabled': True, 'focal_px': focal}})
+                                      'focal_px': focal, 'imu': {'enabled': True}})
     moved = (7.0, -5.0, 0.0, 0.0)
     gyro = np.array([-moved[1] / focal, moved[0] / focal, 0.0])   # camera turn for that shift
     out = {}

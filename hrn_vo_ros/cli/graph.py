@@ -215,9 +215,9 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
                       ) -> tuple[dict[str, object], dict[str, object]]:
     """The parameters ``hrn-vo run`` derives from the dataset, so the graph computes the same.
 
-    Sensor size from the dataset, the resonator's frame size from the packetizer's, the IMU
-    focal length (when ``imu.focal_px`` is 0) and the odometry focal length from ``calib.txt``
-    divided by the downsampling factor.
+    Sensor size from the dataset, the resonator's frame size from the packetizer's, the
+    resonator's focal length (IMU and sphere correction, when ``focal_px`` is 0) and the
+    odometry focal length from ``calib.txt`` divided by the downsampling factor.
 
     Returns:
         ``(packetizer, resonator)`` parameter overrides.
@@ -235,8 +235,8 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
     rs.update(width=pcfg.width, height=pcfg.height)
     focal = read_calib(dataset).fx / pcfg.downsample
     rs['odometry.focal_length_px'] = focal
-    if imu and not rcfg.imu.focal_px:
-        rs['imu.focal_px'] = focal
+    if (imu or rcfg.sphere.enabled) and not rcfg.focal_px:
+        rs['focal_px'] = focal
     return pk, rs
 
 

@@ -92,12 +92,16 @@ def run(args: argparse.Namespace) -> int:
     size = {'width': pcfg.width, 'height': pcfg.height}
     if (rcfg.width, rcfg.height) != (pcfg.width, pcfg.height):
         pcfg, rcfg = load_configs(args.config, packetizer=pk_over, resonator={**rs_over, **size})
+    if rcfg.sphere.enabled and pcfg.rectify != 'equidistant':
+        raise ConfigError(f'sphere.enabled needs equidistant-rectified frames (packetizer rectify '
+                          f'is {pcfg.rectify}): set packetizer.rectify=equidistant or '
+                          'sphere.enabled=false')
+    if (rcfg.imu.enabled or rcfg.sphere.enabled) and not rcfg.focal_px:
+        focal = ecd.read_calib(dataset).fx / pcfg.downsample
+        pcfg, rcfg = load_configs(args.config, packetizer=pk_over,
+                                  resonator={**rs_over, **size, 'focal_px': focal})
     gyro: GyroIntegrator | None = None
     if rcfg.imu.enabled:
-        if not rcfg.imu.focal_px:
-            focal = ecd.read_calib(dataset).fx / pcfg.downsample
-            pcfg, rcfg = load_configs(args.config, packetizer=pk_over,
-                                      resonator={**rs_over, **size, 'imu.focal_px': focal})
         rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
         gyro = GyroIntegrator(ecd.read_imu(dataset), rot)
     if pcfg.rectify != 'none':

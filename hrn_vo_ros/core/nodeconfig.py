@@ -45,7 +45,7 @@ class PacketizerNodeConfig:
 class ResonatorNodeConfig:
     """Settings of ``resonator_node`` besides the resonator's own.
 
-    The IMU switch is the resonator's ``imu.enabled`` (with ``imu.focal_px`` and
+    The IMU switch is the resonator's ``imu.enabled`` (with ``focal_px`` and
     ``imu.camera_from_imu``): when true the node subscribes to ``~/imu``.
     """
 
