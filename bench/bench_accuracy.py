@@ -7,7 +7,9 @@ For each kind (rotation, rotation with IMU, translation, arm) and each held-out 
 2. runs ``hrn-vo run DATASET --config config/<kind>.yaml --out est.csv [--imu]`` (subprocess,
    the working tree's code) and times it,
 3. runs the classical baseline (:mod:`hrn_vo_ros.core.baseline`) on the same event frames (same
-   packetizer settings from the same YAML file) and writes ``est_baseline.csv``,
+   packetizer settings from the same YAML file) and writes ``est_baseline.csv``; where the
+   config turns the HRN's sphere correction on (shapes_rotation), a second time with it
+   (``baseline_sphere``), and the HRN is compared with the better of the two per seed,
 4. evaluates both with ``hrn-vo evaluate ... --json`` (subprocess, the paper's protocol),
 
 then prints one table: median errors per seed and kind, HRN vs. baseline, the issue's targets,
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, replace
+from functools import partial
 import json
 import os
 from pathlib import Path
@@ -126,15 +129,20 @@ def run_hrn(case: Case, dataset: Path, out: Path) -> float:
     return time.perf_counter() - t0
 
 
-def run_baseline(case: Case, dataset: Path, out: Path) -> float:
-    """The baseline on the same frames as ``hrn-vo run`` (same packetizer settings)."""
+def run_baseline(case: Case, dataset: Path, out: Path, sphere: bool = False) -> float:
+    """The baseline on the same frames as ``hrn-vo run`` (same packetizer settings), with the
+    sphere correction only if ``sphere`` and the config enables it for the HRN."""
     t0 = time.perf_counter()
     width, height = ecd.read_sensor_size(dataset)
-    pcfg, rcfg = load_configs(ROOT / 'config' / case.config,
-                              packetizer={'sensor_width': width, 'sensor_height': height},
-                              resonator={})
+    calib = ecd.read_calib(dataset)
+    pk = {'sensor_width': width, 'sensor_height': height}
+    pcfg, rcfg = load_configs(ROOT / 'config' / case.config, packetizer=pk, resonator={})
+    if not rcfg.focal_px:          # as hrn-vo run: fx / downsample (sphere correction)
+        pcfg, rcfg = load_configs(ROOT / 'config' / case.config, packetizer=pk,
+                                  resonator={'focal_px': calib.fx / pcfg.downsample})
     bcfg = replace(config_like(rcfg), width=pcfg.width, height=pcfg.height)
-    packetizer = Packetizer(with_calibration(pcfg, ecd.read_calib(dataset)))
+    bcfg = replace(bcfg, sphere=bcfg.sphere and sphere)
+    packetizer = Packetizer(with_calibration(pcfg, calib))
     base = PhaseCorrelationBaseline(bcfg)
     rows = []
     for batch in ecd.iter_events(dataset, sensor_size=(width, height)):
@@ -158,6 +166,11 @@ def evaluate(case: Case, dataset: Path, est: Path, plot: Path | None,
     res = _hrn_vo(*args)
     result: dict[str, object] = json.loads(res.stdout.strip().splitlines()[-1])
     return result
+
+
+def _sphere(case: Case) -> bool:
+    """Whether the case's config turns the sphere correction on."""
+    return load_configs(ROOT / 'config' / case.config)[1].sphere.enabled
 
 
 def _fmt(v: float | None, metric: str) -> str:
@@ -187,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--quick', action='store_true', help='one seed (101), 8 s sequences')
     p.add_argument('--convention', choices=ROTATION_CONVENTIONS, default='swing-twist',
                    help='rotation convention of the evaluation (hrn-vo evaluate --convention)')
-    p.add_argument('--reuse', nargs='*', choices=('hrn', 'baseline'), default=[],
+    p.add_argument('--reuse', nargs='*', choices=('hrn', 'baseline', 'baseline_sphere'),
+                   default=[],
                    help='re-evaluate existing estimate CSVs of these methods instead of '
                         'running them again')
     args = p.parse_args(argv)
@@ -209,9 +223,11 @@ def main(argv: list[str] | None = None) -> int:
             methods = [] if args.no_hrn else [('hrn', run_hrn)]
             if not args.no_baseline:
                 methods.append(('baseline', run_baseline))
+                if _sphere(case):     # the HRN's frame warp given to the baseline too
+                    methods.append(('baseline_sphere', partial(run_baseline, sphere=True)))
             for method, runner in methods:
                 # the baseline has no IMU: rotation and rotation_imu share its estimate
-                tag = case.sim_kind if method == 'baseline' else name
+                tag = case.sim_kind if method.startswith('baseline') else name
                 est = work / 'est' / (f'{tag}_{args.seconds:g}s_seed{seed}'
                                       f'{_speed_tag(args.speed_scale)}_{method}.csv')
                 est.parent.mkdir(parents=True, exist_ok=True)
@@ -244,15 +260,18 @@ def _table(results: list[tuple[Case, int, str, dict[str, object], float]],
           f'{", ".join(map(str, args.seeds))}{speed}); errors on the evaluated part '
           '(paper protocol)')
     head = (f'{"kind":13s} {"seed":>5s} {"metric":17s} {"HRN":>9s} {"baseline":>9s} '
-            f'{"target":>9s} {"paper(real)":>11s}  HRN ok  HRN<base')
+            f'{"base+sph":>9s} {"target":>9s} {"paper(real)":>11s}  HRN ok  HRN<base')
     print(head)
     print('-' * len(head))
+    print("(base+sph: the baseline with the HRN's sphere correction, where the config has it; "
+          'HRN<base compares with the better baseline)')
     kinds = dict.fromkeys(c.name for c, *_ in results)
     for kind in kinds:
         case = CASES[kind]
         seeds = sorted({s for c, s, *_ in results if c.name == kind})
         for m_i, metric in enumerate(case.metrics):
-            per_method: dict[str, list[float]] = {'hrn': [], 'baseline': []}
+            per_method: dict[str, list[float]] = {'hrn': [], 'baseline': [],
+                                                  'baseline_sphere': []}
             for seed in seeds:
                 vals = {}
                 for c, s, method, res, _ in results:
@@ -271,7 +290,7 @@ def _table(results: list[tuple[Case, int, str, dict[str, object], float]],
     print()
     walls = [(c.name, m, w) for c, _, m, _, w in results if w == w]
     for kind in kinds:
-        for method in ('hrn', 'baseline'):
+        for method in ('hrn', 'baseline', 'baseline_sphere'):
             ws = [w for k, m, w in walls if k == kind and m == method]
             if ws:
                 print(f'wall time {kind:13s} {method:8s} median {statistics.median(ws):6.1f} s '
@@ -281,10 +300,13 @@ def _table(results: list[tuple[Case, int, str, dict[str, object], float]],
 def _row(kind: str, seed: str, metric: str, vals: dict[str, float], target: float,
          paper: float | None) -> None:
     h = vals.get('hrn')
-    b = vals.get('baseline')
+    bases = [v for k, v in vals.items() if k.startswith('baseline') and v == v]
+    b = min(bases) if bases else None
     ok = '' if h is None or h != h else ('yes' if h <= target else 'NO')
-    better = '' if h is None or b is None or h != h or b != b else ('yes' if h < b else 'NO')
-    print(f'{kind:13s} {seed:>5s} {metric:17s} {_fmt(h, metric):>9s} {_fmt(b, metric):>9s} '
+    better = '' if h is None or b is None or h != h else ('yes' if h < b else 'NO')
+    print(f'{kind:13s} {seed:>5s} {metric:17s} {_fmt(h, metric):>9s} '
+          f'{_fmt(vals.get("baseline"), metric):>9s} '
+          f'{_fmt(vals.get("baseline_sphere"), metric):>9s} '
           f'{_fmt(target, metric):>9s} {_fmt(paper, metric):>11s}  {ok:6s}  {better}')
 
 

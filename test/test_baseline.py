@@ -17,7 +17,7 @@ from hrn_vo_ros.core.baseline import (
 )
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn import HRN, ResonatorConfig
-from hrn_vo_ros.errors import TrackingError
+from hrn_vo_ros.errors import ConfigError, TrackingError
 
 
 @pytest.fixture(scope='module')
@@ -88,3 +88,17 @@ def test_config_like_starts_the_map_on_the_same_frame_as_the_hrn(per_frame: int)
     first_hrn = next(i for i, f in enumerate(frames) if hrn.step(f, i).map_updated)
     first_base = next(i for i, f in enumerate(frames) if base.step(f, i).map_updated)
     assert first_hrn == first_base == 10 // per_frame
+
+
+def test_config_like_passes_the_sphere_correction(scene: np.ndarray) -> None:
+    rcfg = from_dict(ResonatorConfig, {'focal_px': 80.0, 'sphere': {'enabled': True}})
+    bcfg = config_like(rcfg)
+    assert bcfg.sphere and bcfg.focal_px == 80.0
+    assert not config_like(from_dict(ResonatorConfig, {})).sphere
+    with pytest.raises(ConfigError, match='focal_px'):
+        PhaseCorrelationBaseline(BaselineConfig(sphere=True))
+    # near the start of the chart the warp is close to the identity: a shift is still found
+    b = PhaseCorrelationBaseline(bcfg)
+    b.step(view(scene, 0, 0, 0), 0)
+    e = b.step(view(scene, 3.0, -2.0, 0.0), 1)
+    assert e.h == pytest.approx(3.0, abs=0.5) and e.v == pytest.approx(-2.0, abs=0.5)

@@ -34,6 +34,9 @@ Per event frame I (binary, placed in the centre of a zero canvas like the HRN's 
    where A is the de-rotated frame moved to the estimated camera position (a Fourier shift,
    sub-pixel), blocked for the first ``block_iterations`` frames; ``m0`` is the first frame.
 
+With ``sphere`` (as the HRN's ``sphere.enabled``) each frame is first warped by the non-rigid
+part of the camera rotation at the previous pose (:mod:`hrn_vo_ros.core.sphere`).
+
 Output conventions (as the HRN's, see :mod:`hrn_vo_ros.core.hrn`): content moved by +a pixels
 gives ``h = -a`` (camera position in the map, x right / y down); a content rotation by +b (from
 +x towards +y) gives ``r = -b`` (right-handed camera roll), unwrapped; ``z`` is the log zoom of
@@ -55,6 +58,7 @@ import scipy.fft as sfft
 from hrn_vo_ros.core.configbase import param, validate
 from hrn_vo_ros.core.estimate import Estimate
 from hrn_vo_ros.core.hrn import ResonatorConfig
+from hrn_vo_ros.core.sphere import SphereWarp
 from hrn_vo_ros.errors import TrackingError
 
 F64 = NDArray[np.float64]
@@ -76,6 +80,10 @@ class BaselineConfig:
     block_iterations: int = param(100, 'no map update during the first frames', lo=0,
                                   hi=10_000_000)
     learn_map: bool = param(True, 'update the map (false: map = first frame)')
+    sphere: bool = param(False, 'warp each frame by the non-rigid part of the camera rotation '
+                         "at the last pose (core/sphere.py, as the HRN's sphere.enabled)")
+    focal_px: float = param(0.0, 'focal length in frame pixels (sphere correction)', lo=0.0,
+                            hi=100_000.0)
     scale: bool = param(False, 'estimate the log zoom z (Fourier–Mellin scale)')
     max_log_scale: float = param(0.4, 'largest |z| accepted per frame', lo=0.01, hi=3.0)
     n_theta: int = param(180, 'log-polar angle samples over [0, pi)', lo=16, hi=4096)
@@ -147,6 +155,7 @@ class PhaseCorrelationBaseline:
             raise TrackingError('the canvas must be at least as large as the frame')
         self.ox = (self.W - c.width) // 2
         self.oy = (self.H - c.height) // 2
+        self._sphere = SphereWarp(c.width, c.height, c.focal_px) if c.sphere else None
         self.win = _hann2(c.height, c.width)
         # frequency grids for Fourier shifts of the canvas
         self.fy = sfft.fftfreq(self.H)[:, None]
@@ -276,6 +285,8 @@ class PhaseCorrelationBaseline:
         on = int(np.count_nonzero(img))
         if on == 0 or on > c.max_fill * img.size:
             return self._emit(t_ns, valid=False)
+        if self._sphere is not None and self.started:
+            img = self._sphere.warp(img, self.h, self.v, self.r)
         if c.blur > 0:
             img = ndimage.gaussian_filter(img, c.blur, mode='constant')
         if not self.started:
@@ -342,7 +353,8 @@ class PhaseCorrelationBaseline:
 
 
 def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
-    """Baseline settings matching an HRN config: frame size, map anchoring and scale factor.
+    """Baseline settings matching an HRN config: frame size, map anchoring, sphere correction
+    and scale factor.
 
     The HRN blocks its map for ``map.block_iterations`` resonator iterations, the baseline for
     that many frames: the count is divided by ``cleanup.iterations_per_frame`` so that both
@@ -352,7 +364,8 @@ def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
     return BaselineConfig(width=rcfg.width, height=rcfg.height, mu1=rcfg.map.mu1,
                           mu2=rcfg.map.mu2,
                           block_iterations=rcfg.map.block_iterations // per_frame,
-                          learn_map=rcfg.map.learn, scale=rcfg.scale.enabled,
+                          learn_map=rcfg.map.learn, sphere=rcfg.sphere.enabled,
+                          focal_px=rcfg.focal_px, scale=rcfg.scale.enabled,
                           max_log_scale=rcfg.scale.max_log_scale, max_fill=rcfg.max_fill)
 
 
