@@ -17,6 +17,7 @@ for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ[_var] = '1'
 
 import argparse  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -83,6 +84,16 @@ def main() -> None:
     f_wall, f_cpu = time_steps(fast, frames)
     print(f'fast path   : {f_wall:8.3f} ms/step wall, {f_cpu:8.3f} ms/step CPU '
           f'(median of {args.steps}; target <= 1.5 ms)')
+    if cfg.sphere.enabled:      # its cost, off and on alternating (the machine drifts)
+        off = replace(cfg, sphere=replace(cfg.sphere, enabled=False))
+        runs: dict[bool, list[float]] = {True: [], False: []}
+        for _ in range(3):
+            for on in (False, True):
+                hrn = HRN(cfg if on else off, rng=np.random.default_rng(1))
+                runs[on].append(time_steps(hrn, frames[:args.steps // 2 + 1])[0])
+        s_on, s_off = min(runs[True]), min(runs[False])
+        print(f'sphere corr.: {s_on:8.3f} ms/step with, {s_off:8.3f} ms/step without (best of 3 '
+              f'alternating runs; the warp costs {s_on - s_off:+.3f} ms)')
 
     t0 = time.perf_counter()
     dcfg = load_configs(args.config, resonator={**over, 'path': 'dense'})[1]

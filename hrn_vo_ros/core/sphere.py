@@ -21,7 +21,8 @@ projection with focal length ``f`` (frame pixels), ``Rz(r)`` the roll about the 
 warped frame is exactly the rigid transform of the chart that the resonator assumes; with the
 previous frame's pose the remaining error is second order in the motion between frames. With
 ``c = 0`` the warp is the identity. Each pixel is splatted bilinearly (weights sum to its value)
-into an image of the frame's size; content warped outside the frame is dropped.
+into an image of the frame's size; content warped outside the frame is dropped (a pixel warped
+more than one pixel out is clipped to the border ring first, then dropped with it).
 
 Conventions: image x right, y down, optical axis z forward (camera frame of REP-103's optical
 frame); ``Rot(a)`` turns from +x towards +y.
@@ -106,16 +107,18 @@ class SphereWarp:
         flat = np.flatnonzero(image)
         vals = np.asarray(image, dtype=np.float64).ravel()[flat]
         px, py = self.positions(flat, h, v, r)
+        w, hgt = self.width, self.height
+        # splat on a frame padded by one pixel (no per-corner bounds checks), then crop; a
+        # pixel moved further out than the padding is dropped
+        px = np.clip(px + 1.0, 0.0, w + 1.0 - 1e-9)
+        py = np.clip(py + 1.0, 0.0, hgt + 1.0 - 1e-9)
         x0, y0 = np.floor(px), np.floor(py)
         fx, fy = px - x0, py - y0
-        xi, yi = x0.astype(np.intp), y0.astype(np.intp)
-        w, hgt = self.width, self.height
-        idx, wts = [], []
-        for dx, dy, wt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
-                           (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
-            xs, ys = xi + dx, yi + dy
-            ok = (xs >= 0) & (xs < w) & (ys >= 0) & (ys < hgt)
-            idx.append(ys[ok] * w + xs[ok])
-            wts.append((wt * vals)[ok])
-        out = np.bincount(np.concatenate(idx), weights=np.concatenate(wts), minlength=w * hgt)
-        return np.asarray(out, dtype=np.float64).reshape(hgt, w)
+        wp = w + 2
+        base = (y0 * wp + x0).astype(np.intp)
+        gx, gy = 1.0 - fx, 1.0 - fy
+        idx = np.concatenate((base, base + 1, base + wp, base + wp + 1))
+        wts = np.concatenate((gx * gy, fx * gy, gx * fy, fx * fy))
+        wts *= np.tile(vals, 4)
+        out = np.bincount(idx, weights=wts, minlength=wp * (hgt + 2)).reshape(hgt + 2, wp)
+        return np.asarray(out[1:-1, 1:-1], dtype=np.float64)
