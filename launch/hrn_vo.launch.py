@@ -13,6 +13,9 @@ Arguments:
     camera_info_topic: the CameraInfo topic (read when the config rectifies without calib.*).
     imu_topic: the sensor_msgs/Imu topic (used with use_imu:=true).
     use_imu: fuse the gyro (sets the resonator's ``imu.enabled``).
+    focal_px: focal length in frame pixels, fx / downsample (about 79.6 for a DAVIS240C at 2.5),
+        for the IMU prediction and the sphere correction of shapes_rotation; 0 keeps the
+        config's value (without one the resonator node runs without the sphere correction).
     publish_tf: publish odom → base_link on /tf.
     bag: a ROS 2 bag to replay with this package's bag player (empty: none).
     rate: replay rate of the bag player.
@@ -42,13 +45,17 @@ def _nodes(context, *args, **kwargs):
     camera_info_topic = LaunchConfiguration('camera_info_topic').perform(context)
     imu_topic = LaunchConfiguration('imu_topic').perform(context)
     bag = LaunchConfiguration('bag').perform(context)
+    resonator = {'imu.enabled': use_imu, 'publish_tf': publish_tf}
+    focal = float(LaunchConfiguration('focal_px').perform(context))
+    if focal > 0.0:
+        resonator['focal_px'] = focal
     actions = [
         Node(package='hrn_vo_ros', executable='packetizer_node', name='packetizer_node',
              parameters=[config], remappings=[('~/events', events_topic),
                                                       ('~/camera_info', camera_info_topic)],
              output='screen'),
         Node(package='hrn_vo_ros', executable='resonator_node', name='resonator_node',
-             parameters=[config, {'imu.enabled': use_imu, 'publish_tf': publish_tf}],
+             parameters=[config, resonator],
              remappings=[('~/frames', '/packetizer_node/frames'), ('~/imu', imu_topic)],
              output='screen'),
     ]
@@ -69,6 +76,7 @@ def generate_launch_description():
         DeclareLaunchArgument('camera_info_topic', default_value='/event_camera/camera_info'),
         DeclareLaunchArgument('imu_topic', default_value='/imu'),
         DeclareLaunchArgument('use_imu', default_value='false'),
+        DeclareLaunchArgument('focal_px', default_value='0.0'),
         DeclareLaunchArgument('publish_tf', default_value='false'),
         DeclareLaunchArgument('bag', default_value=''),
         DeclareLaunchArgument('rate', default_value='1.0'),
