@@ -236,6 +236,8 @@ def test_bad_inputs_and_configs() -> None:
     hrn.step(frame, 0)
     with pytest.raises(ConfigError, match='focal_px'):
         hrn.step(frame, 1, gyro_delta=np.zeros(3))
+    with pytest.raises(ConfigError, match='focal_px'):
+        make({'imu': {'enabled': True}})             # refused at construction
     imu_hrn = make({'focal_px': 80.0})
     imu_hrn.step(frame, 0)
     with pytest.raises(TrackingError, match='gyro_delta'):

@@ -896,6 +896,9 @@ class HRN:
         self._canvas = np.zeros((self.geometry.canvas_height, self.geometry.canvas_width))
         self._sphere = (SphereWarp(c.width, c.height, c.focal_px) if c.sphere.enabled
                         else None)
+        if c.imu.enabled and c.focal_px <= 0.0:     # fail at start, not on the first gyro frame
+            raise ConfigError('imu.enabled needs focal_px (fx / downsample, in frame pixels) for '
+                              'the gyro prediction: set it (hrn-vo run derives it from calib.txt)')
         self._blur: Real | None = None            # ĝ of codebook.kernel_sigma
         if c.codebook.kernel_sigma > 0.0:
             sig = c.codebook.kernel_sigma
