@@ -92,9 +92,8 @@ class SphereWarp:
                        z * ca + (kx * y - ky * x) * sa)
         # P: equidistant projection, radius f·θ along the ray's image direction
         s = np.hypot(x, y)
-        th = np.arctan2(s, z)
-        k = self.f * th / np.where(s > 1e-12, s, 1.0)
-        k = np.where(s > 1e-12, k, self.f)
+        off_axis = s > 1e-12                       # on the axis f·θ/s -> f
+        k = np.where(off_axis, self.f * np.arctan2(s, z) / np.where(off_axis, s, 1.0), self.f)
         mx, my = k * x - h, k * y - v
         return cr * mx + sr * my + self.cx, -sr * mx + cr * my + self.cy
 
