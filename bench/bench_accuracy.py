@@ -51,6 +51,7 @@ sys.path.insert(0, str(ROOT))
 from hrn_vo_ros.core.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries, ROTATION_CONVENTIONS  # noqa: E402
 from hrn_vo_ros.core.frames import Packetizer, with_calibration  # noqa: E402
+from hrn_vo_ros.core.hrn import needs_focal  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate, SimulatorConfig  # noqa: E402
 from hrn_vo_ros.errors import ConfigError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
@@ -137,7 +138,7 @@ def run_baseline(case: Case, dataset: Path, out: Path, sphere: bool = False) -> 
     calib = ecd.read_calib(dataset)
     pk = {'sensor_width': width, 'sensor_height': height}
     pcfg, rcfg = load_configs(ROOT / 'config' / case.config, packetizer=pk, resonator={})
-    if not rcfg.focal_px:          # as hrn-vo run: fx / downsample (sphere correction)
+    if needs_focal(rcfg):          # as hrn-vo run: fx / downsample (sphere correction)
         pcfg, rcfg = load_configs(ROOT / 'config' / case.config, packetizer=pk,
                                   resonator={'focal_px': calib.fx / pcfg.downsample})
     bcfg = replace(config_like(rcfg), width=pcfg.width, height=pcfg.height)

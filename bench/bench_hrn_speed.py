@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
 from hrn_vo_ros.core.events import EventArray  # noqa: E402
 from hrn_vo_ros.core.frames import Packetizer, PacketizerConfig, with_calibration  # noqa: E402
-from hrn_vo_ros.core.hrn import HRN  # noqa: E402
+from hrn_vo_ros.core.hrn import HRN, needs_focal  # noqa: E402
 from hrn_vo_ros.core.sequence import CameraCalibration  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
 
@@ -71,7 +71,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     frames = moving_frames(args.steps + 1, rng)
     over: dict[str, object] = {'map.block_iterations': 10}
-    if not load_configs(args.config)[1].focal_px:   # as hrn-vo run: DAVIS240C fx / downsample
+    if needs_focal(load_configs(args.config)[1]):   # as hrn-vo run: DAVIS240C fx / downsample
         over['focal_px'] = 199.1 / 2.5
     _, cfg = load_configs(args.config, resonator=over)
     fast = HRN(cfg, rng=np.random.default_rng(1))

@@ -47,7 +47,7 @@ from hrn_vo_ros.core.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.configbase import from_dict  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries, evaluate  # noqa: E402
 from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig, with_calibration  # noqa: E402
-from hrn_vo_ros.core.hrn import ResonatorConfig  # noqa: E402
+from hrn_vo_ros.core.hrn import needs_focal, ResonatorConfig  # noqa: E402
 from hrn_vo_ros.core.sequence import Trajectory  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
@@ -173,7 +173,7 @@ def main() -> int:
     if args.config is None and not args.synthetic:   # the tuned config, as hrn-vo run uses
         args.config = ROOT / 'config' / 'shapes_rotation.yaml'
     pcfg, cfg = load_configs(args.config, resonator=rs_over)
-    if cfg.sphere.enabled and not cfg.focal_px and not args.synthetic:
+    if needs_focal(cfg) and not args.synthetic:
         # as hrn-vo run: fx / downsample of the simulated camera (calib.txt)
         fx = simulate('rotation', 0.01, seed=0).calib.fx
         pcfg, cfg = load_configs(args.config,

@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.hrn import HRN, ResonatorConfig
+from hrn_vo_ros.core.hrn import HRN, needs_focal, ResonatorConfig, without_unset_sphere
 from hrn_vo_ros.core.sphere import SphereWarp
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.yamlconfig import load_configs
@@ -80,6 +80,18 @@ def test_needs_a_focal_length() -> None:
     with pytest.raises(ConfigError, match='focal_px'):
         HRN(from_dict(ResonatorConfig, {'sphere': {'enabled': True}}),
             rng=np.random.default_rng(0))
+
+
+def test_focal_length_policy_for_callers_without_a_calibration() -> None:
+    on = from_dict(ResonatorConfig, {'sphere': {'enabled': True}})
+    assert needs_focal(on) and needs_focal(from_dict(ResonatorConfig, {'imu': {'enabled': True}}))
+    assert not needs_focal(from_dict(ResonatorConfig, {}))
+    assert not needs_focal(from_dict(ResonatorConfig, {'sphere': {'enabled': True},
+                                                       'focal_px': 80.0}))
+    off, why = without_unset_sphere(on)
+    assert not off.sphere.enabled and why is not None and 'focal_px' in why
+    kept = from_dict(ResonatorConfig, {'sphere': {'enabled': True}, 'focal_px': 80.0})
+    assert without_unset_sphere(kept) == (kept, None)
 
 
 def render(dots: np.ndarray, rot: Rotation) -> np.ndarray:

@@ -222,6 +222,7 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
     Returns:
         ``(packetizer, resonator)`` parameter overrides.
     """
+    from hrn_vo_ros.core.hrn import needs_focal
     from hrn_vo_ros.io.ecd import read_calib, read_sensor_size
     from hrn_vo_ros.io.yamlconfig import load_configs
 
@@ -235,7 +236,7 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
     rs.update(width=pcfg.width, height=pcfg.height)
     focal = read_calib(dataset).fx / pcfg.downsample
     rs['odometry.focal_length_px'] = focal
-    if (imu or rcfg.sphere.enabled) and not rcfg.focal_px:
+    if needs_focal(rcfg):
         rs['focal_px'] = focal
     return pk, rs
 

@@ -26,6 +26,7 @@ from hrn_vo_ros.core.backends import BackendConfig, BACKENDS, make_backend, Spik
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.evaluation import EstimateSeries
 from hrn_vo_ros.core.frames import Packetizer, with_calibration
+from hrn_vo_ros.core.hrn import needs_focal
 from hrn_vo_ros.core.imu import GyroIntegrator
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f'sphere.enabled needs equidistant-rectified frames (packetizer rectify '
                           f'is {pcfg.rectify}): set packetizer.rectify=equidistant or '
                           'sphere.enabled=false')
-    if (rcfg.imu.enabled or rcfg.sphere.enabled) and not rcfg.focal_px:
+    if needs_focal(rcfg):
         focal = ecd.read_calib(dataset).fx / pcfg.downsample
         pcfg, rcfg = load_configs(args.config, packetizer=pk_over,
                                   resonator={**rs_over, **size, 'focal_px': focal})

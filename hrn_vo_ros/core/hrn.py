@@ -117,7 +117,7 @@ log zoom of the content (ρ shift × Δρ), positive when the camera approaches 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import Any, Protocol
 
@@ -337,6 +337,22 @@ class ResonatorConfig:
                               'dense for random codebooks')
         make_geometry(self.width, self.height, self.codebook.canvas_width,
                       self.codebook.canvas_height, self.logpolar)
+
+
+def needs_focal(cfg: ResonatorConfig) -> bool:
+    """Whether a switched-on feature (IMU prediction, sphere correction) needs ``focal_px`` and
+    it is unset: callers with a calibration set it to fx / downsample."""
+    return (cfg.imu.enabled or cfg.sphere.enabled) and not cfg.focal_px
+
+
+def without_unset_sphere(cfg: ResonatorConfig) -> tuple[ResonatorConfig, str | None]:
+    """``cfg`` with the sphere correction off, and why, if ``focal_px`` is unset (a caller
+    without a calibration, such as the resonator node, still runs); else ``(cfg, None)``."""
+    if not (cfg.sphere.enabled and not cfg.focal_px):
+        return cfg, None
+    return replace(cfg, sphere=replace(cfg.sphere, enabled=False)), (
+        'sphere.enabled needs focal_px (fx / downsample, in frame pixels; about 79.6 for a '
+        'DAVIS240C at 2.5) as a start parameter: running without the sphere correction')
 
 
 def state_gamma(cfg: ResonatorConfig) -> float:

@@ -19,7 +19,6 @@ Parameters: the fields of ``ResonatorConfig`` and ``ResonatorNodeConfig`` (same 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import replace
 import sys
 import time
 from typing import Any
@@ -32,8 +31,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
-from hrn_vo_ros.core.backends import BackendConfig, make_backend
-from hrn_vo_ros.core.hrn import ResonatorConfig
+from hrn_vo_ros.core.backends import BackendConfig, make_backend, ResonatorBackend
+from hrn_vo_ros.core.hrn import ResonatorConfig, without_unset_sphere
 from hrn_vo_ros.core.imubuffer import GyroBuffer
 from hrn_vo_ros.core.nodeconfig import ResonatorNodeConfig
 from hrn_vo_ros.core.nodestats import NodeStats
@@ -54,8 +53,7 @@ class ResonatorNode(Node):
         self._backend = declare_config(self, BackendConfig, prefix='backend.',
                                        on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
-        self._hrn = make_backend(self._runnable(cfg), rng=np.random.default_rng(opts.seed),
-                                 backend=self._backend.config)
+        self._hrn = self._make_hrn(cfg)
         self.stats = NodeStats()
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._last_t: int | None = None
@@ -80,22 +78,18 @@ class ResonatorNode(Node):
         self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
                                f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
 
-    def _runnable(self, cfg: ResonatorConfig) -> ResonatorConfig:
-        """``cfg``, with the sphere correction off (and a warning) if focal_px is unknown: the
-        node has no calibration of its own, and a live camera should still give odometry."""
-        if cfg.sphere.enabled and not cfg.focal_px:
-            self.get_logger().warning(
-                'sphere.enabled needs focal_px (fx / downsample, in frame pixels; about 79.6 '
-                'for a DAVIS240C at 2.5) as a start parameter: running without the sphere '
-                'correction')
-            return replace(cfg, sphere=replace(cfg.sphere, enabled=False))
-        return cfg
+    def _make_hrn(self, cfg: ResonatorConfig) -> ResonatorBackend:
+        """The resonator for ``cfg`` (seeded; without a focal length, without the sphere
+        correction: the node has no calibration, a live camera should still give odometry)."""
+        cfg, why = without_unset_sphere(cfg)
+        if why is not None:
+            self.get_logger().warning(why)
+        return make_backend(cfg, rng=np.random.default_rng(self._opts.config.seed),
+                            backend=self._backend.config)
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        self._hrn = make_backend(self._runnable(cfg),
-                                 rng=np.random.default_rng(self._opts.config.seed),
-                                 backend=self._backend.config)
+        self._hrn = self._make_hrn(cfg)
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
     def _on_frame(self, msg: Image) -> None:
