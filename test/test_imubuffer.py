@@ -49,3 +49,14 @@ def test_frames_after_the_last_sample_are_clamped() -> None:
     np.testing.assert_allclose(buf.angle_at(-5), [0, 0, 0])         # clamped at 0
     buf.trim(100)
     np.testing.assert_array_equal(buf.delta(100, 200), np.zeros(3))
+
+
+def test_increments_are_differences_of_angles_and_survive_trim() -> None:
+    buf = GyroBuffer()
+    for k in range(20):
+        buf.add(k * 10, np.array([0.0, 1e9, 2e9]))        # 1 and 2 rad per ns
+    assert buf.increment(25) is None                       # the first frame has no increment
+    buf.trim(35)
+    np.testing.assert_allclose(buf.increment(35), [0, 10.0, 20.0])
+    buf.trim(150)                                          # the sample at 25 ns is gone
+    np.testing.assert_allclose(buf.increment(150), [0, 115.0, 230.0])

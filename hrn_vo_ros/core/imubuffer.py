@@ -38,6 +38,7 @@ class GyroBuffer:
         self._s: deque[float] = deque(maxlen=max_samples)       # seconds since the first sample
         self._g: deque[NDArray[np.float64]] = deque(maxlen=max_samples)  # camera axes
         self._cum: deque[NDArray[np.float64]] = deque(maxlen=max_samples)
+        self._last_angle: NDArray[np.float64] | None = None     # of the last increment()
 
     def __len__(self) -> int:
         return len(self._ns)
@@ -101,6 +102,17 @@ class GyroBuffer:
             returns (3,).
         """
         return self.angle_at(t_ns) - self.angle_at(t_prev_ns)
+
+    def increment(self, t_ns: int) -> NDArray[np.float64] | None:
+        """Integrated gyro since the previous call (None on the first), as ``hrn-vo run``
+        takes it: differences of :meth:`angle_at`, so they survive :meth:`trim`.
+
+        Shapes:
+            returns (3,) or None.
+        """
+        angle = self.angle_at(t_ns)
+        prev, self._last_angle = self._last_angle, angle
+        return None if prev is None else angle - prev
 
     def trim(self, t_ns: int) -> None:
         """Drop samples no longer needed when no angle before ``t_ns`` will be asked for."""

@@ -57,7 +57,6 @@ class ResonatorNode(Node):
         self.stats = NodeStats()
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._last_t: int | None = None
-        self._prev_angle: np.ndarray | None = None
         self._pending: deque[tuple[int, np.ndarray, float]] = deque()
         self._last_image_wall = self._last_imu_wall = 0.0
         self._confidence: dict[str, float] = {}
@@ -131,10 +130,7 @@ class ResonatorNode(Node):
         while self._pending and (force or len(self._pending) > limit
                                  or self._gyro.covers(self._pending[0][0])):
             t_ns, image, _ = self._pending.popleft()
-            angle = self._gyro.angle_at(t_ns)     # as hrn-vo run: differences of angles
-            prev, self._prev_angle = self._prev_angle, angle
-            delta = None if prev is None else angle - prev
-            self._process(t_ns, image, delta)
+            self._process(t_ns, image, self._gyro.increment(t_ns))
             self._gyro.trim(t_ns)
 
     def _process(self, t_ns: int, image: np.ndarray, gyro_delta: np.ndarray | None) -> None:
