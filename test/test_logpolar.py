@@ -74,6 +74,22 @@ def test_fast_lambda_equals_dense_lambda_dft_and_generic(rng: np.random.Generato
                                atol=1e-9)
 
 
+def test_theta_only_forms_match_the_2d_transforms(rng: np.random.Generator) -> None:
+    """The direct form of the fast engine: Λ' from a θ-spectrum, and Parseval along ρ."""
+    g = make_geometry(20, 14, 24, 16, LogPolarConfig(n_theta=24, n_rho=12, ring_weight=0.5))
+    lt = LogPolarTransform(g)
+    y = rng.normal(size=(12, 24)) + 1j * rng.normal(size=(12, 24))   # a θ-spectrum
+    np.testing.assert_allclose(lt.reverse_theta(y.copy()), lt.reverse(np.fft.fft(y, axis=0)),
+                               atol=1e-9)
+    x = rng.normal(size=(16, 24)) + 1j * rng.normal(size=(16, 24))
+    img = rng.random((16, 24))
+    s_theta = np.fft.fft(lt.lp_image(img), axis=1)
+    # Σ_kρ (D_w S) ⊙ (Λ_w x)* = n_ρ Σ_ρ w² S_θ ⊙ fft_θ(T ifft2 x)*
+    want = (lt.weight(lt.encode_image_lp(img)) * lt.forward_weighted(x).conj()).sum(axis=0)
+    got = (12 * lt.w[:, None] ** 2 * s_theta * lt.forward_theta(x.copy()).conj()).sum(axis=0)
+    np.testing.assert_allclose(got, want, atol=1e-8 * np.abs(want).max())
+
+
 def test_geometry_errors() -> None:
     with pytest.raises(ConfigError, match='smaller than'):
         make_geometry(96, 72, 64, 72, LogPolarConfig())

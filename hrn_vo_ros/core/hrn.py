@@ -383,8 +383,14 @@ def cleanup_weights(c: Real, cfg: CleanupConfig, bound: float = 0.0) -> Real:
     Shapes:
         c: (K,); returns (K,).
     """
+    mag = np.abs(c)
+    top = float(mag.max()) if mag.size else 0.0
     if bound > 0.0:
-        c = np.where(np.abs(c) < 1e-9 * bound, 0.0, c)
+        if top < 1e-9 * bound:
+            return np.zeros_like(c)
+        small = mag < 1e-9 * bound
+        if small.any():
+            c = np.where(small, 0.0, c)
     kind = cfg.nonlinearity
     if kind == 'identity':
         return c
@@ -392,10 +398,11 @@ def cleanup_weights(c: Real, cfg: CleanupConfig, bound: float = 0.0) -> Real:
         return np.maximum(c, 0.0)
     if kind == 'relu_k':
         return np.maximum(c, 0.0) ** cfg.k
-    top = float(np.max(np.abs(c)))
     if top <= 0.0:
         return np.zeros_like(c)
-    return np.exp(cfg.beta * (c / top - 1.0))
+    y = c * (cfg.beta / top)
+    y -= cfg.beta
+    return np.exp(y, out=y)
 
 
 def population_readout(sim: Real, half_window: int, circular: bool
@@ -546,7 +553,17 @@ def refine_exponent(x: NDArray[np.complexfloating], phases: Real, value: float,
 
 
 class _FastEngine:
-    """DFT codebooks; factor states as 1-D spectra along their axis (hrn_math.md §3.2)."""
+    """DFT codebooks; factor states as 1-D spectra along their axis (hrn_math.md §3.2).
+
+    Without a scale factor and without whitening, the engine never forms the 2-D log-polar
+    spectra (the "direct" form): the input is kept as ``S_θ = fft_θ(T · canvas)`` (``S`` =
+    ``fft_ρ(S_θ)``), the roll binding acts along θ only, so ``Λ'(S ⊙ r̂*)`` needs one inverse FFT
+    along θ, and the roll marginal ``Σ_ρ S_w ⊙ (Λ_w l)*`` is, by Parseval along ρ,
+    ``n_ρ Σ_ρ w² ⊙ S_θ ⊙ fft_θ(T · ifft2(l))*``. Same equations, about a third fewer FFTs. A
+    subclass whose populations exchange full spectra (``send``) sets ``direct = False``.
+    """
+
+    direct = True
 
     def __init__(self, cfg: ResonatorConfig, g: Geometry) -> None:
         self.cfg = cfg
@@ -566,6 +583,8 @@ class _FastEngine:
                           for k, b in self.books.items()}
         self._jphases = {k: 1j * b.phases for k, b in self.books.items()}
         self.has_z = 'z' in self.books
+        self._direct = self.direct and not self.has_z and not cfg.cleanup.whiten
+        self._S_roll: Complex = np.zeros(0, np.complex128)  # n_ρ w² ⊙ S_θ (direct form)
         self._sw_key: Complex | None = None
         self._sw: Complex = np.zeros(0, np.complex128)
         self.state: dict[str, Complex] = {}
@@ -573,12 +592,20 @@ class _FastEngine:
         self.inputs: dict[str, Complex] = {}   # the last cleanup inputs (marginals) a
         self.m = np.zeros((g.canvas_height, g.canvas_width), np.complex128)
         self.m0 = self.m
+        self._mc = self.m                           # m̂* (changes once per frame)
         self._mvh = np.empty_like(self.m)           # m̂ ⊙ v̂ ⊙ ĥ scratch (Λ_w copies it)
         self._m0_src: Complex | None = None         # the m0 that _m0_scaled = μ2 m0 was made of
         self._m0_mu2 = 0.0
         self._m0_scaled = self.m0
 
     def encode(self, canvas: Real) -> Complex:
+        """The frame's log-polar spectrum: ``S`` (2-D), or ``S_θ`` in the direct form."""
+        if self._direct:
+            lp = self.lp.lp_image(canvas)
+            S = np.asarray(sfft.fft(lp, axis=1, workers=1), np.complex128)
+            rows = self.g.n_rho * (self.lp.w ** 2 if self.lp.weighted else np.ones(len(lp)))
+            self._S_roll = S * rows[:, None]
+            return S
         S = self.lp.encode_image_lp(canvas)
         if self.lp.weighted and self.lp.last_lp_image is not None:
             self._sw_key, self._sw = S, self.lp.weight_image(self.lp.last_lp_image)
@@ -595,6 +622,7 @@ class _FastEngine:
             self.state = {k: np.ones_like(x) for k, x in self.state.items()}
         self.m0 = sfft.fft2(canvas, workers=1)          # m̂(0) = s(0) = Φ I(0)
         self.m = self.m0.copy()
+        self._mc = self.m.conj()
 
     # No BLAS in the hot path: multi-threaded gemv on these small sizes is slower than one
     # thread and collapses when the cores are shared. Full DFT codebooks (K = n integer entries
@@ -618,10 +646,19 @@ class _FastEngine:
 
     def _clean(self, name: str, a: Complex) -> Complex:
         # C_X(u) with u's weighted marginal a along the factor's axis: f(X p(Re X† a)).
-        c = np.real(self.book_decode(name, a))
-        bound = self.col_norm[name] * float(np.sqrt(np.vdot(a, a).real))
-        self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
-        return fhrr.phasor(self.book_encode(name, cleanup_weights(c, self.cfg.cleanup, bound)))
+        bound = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
+        if self._full[name]:
+            # p acts entrywise, so the codebook's entry order cancels between X† and X: the
+            # similarities stay in FFT order (n Re ifft a) and X p is their FFT
+            c = sfft.ifft(a, workers=1).real
+            c *= a.shape[0]
+            entries = c[self._perm_dec[name]]
+        else:
+            c = entries = np.real(self.book_decode(name, a))
+        self.drive[name] = entries / bound if bound > 0 else np.zeros_like(c)
+        p = cleanup_weights(c, self.cfg.cleanup, bound)
+        y = (sfft.fft(p, workers=1) if self._full[name] else self.book_encode(name, p))
+        return fhrr.phasor(y)
 
     def send(self, name: str, x: Complex) -> Complex:
         """Hook: the population ``name`` (S, m, p, l) sends ``x`` (identity here; the spiking
@@ -632,7 +669,10 @@ class _FastEngine:
         """Hook: the state update x̂ ← (1-γ) x̂ + γ C_X(a) of factor ``name`` from its marginal
         drive ``a`` (the spiking backend replaces it with its neuron layers)."""
         gam = state_gamma(self.cfg)
-        return (1 - gam) * x + gam * self._clean(name, a)
+        y = self._clean(name, a)
+        y *= gam
+        y += (1 - gam) * x
+        return y
 
     def _weighted_input(self, S: Complex) -> Complex:
         if not self.lp.weighted:
@@ -642,12 +682,15 @@ class _FastEngine:
         return self._sw
 
     def iterate(self, S: Complex) -> None:
+        if self._direct:
+            self._iterate_direct(S)
+            return
         st = self.state
         h, v, r = st['h'], st['v'], st['r']
         z = st.get('z')
         S = self.send('S', S)
         m = self.send('m', self.m)
-        mc = m.conj()
+        mc = self._mc if m is self.m else m.conj()
         q = S * r.conj()[None, :]
         if z is not None:
             q *= z.conj()[:, None]
@@ -680,6 +723,25 @@ class _FastEngine:
         st['v'] = self.update('v', v, a_v)
         st['r'] = self.update('r', r, a_r)
 
+    def _iterate_direct(self, S_theta: Complex) -> None:
+        # iterate() in the direct form (class docstring); the same estimates within rounding
+        st = self.state
+        h, v, r = st['h'], st['v'], st['r']
+        u = self.lp.reverse_theta(S_theta * r.conj()[None, :])   # p̂ = Λ'(S ⊙ r̂*)
+        u *= self._mc                                            # p̂ ⊙ m̂*
+        mvh = np.multiply(self.m, v[:, None], out=self._mvh)
+        mvh *= h[None, :]
+        lt = self.lp.forward_theta(mvh)                          # fft_θ(T ifft2(m̂ ⊙ v̂ ⊙ ĥ))
+        np.conjugate(lt, out=lt)
+        lt *= self._S_roll
+        a_r = lt.sum(axis=0)                                     # Σ_kρ S_w ⊙ l̂_w*
+        a_h = np.einsum('i,ij->j', v.conj(), u)
+        a_v = np.einsum('ij,j->i', u, h.conj())
+        self.inputs.update(h=a_h, v=a_v, r=a_r)
+        st['h'] = self.update('h', h, a_h)
+        st['v'] = self.update('v', v, a_v)
+        st['r'] = self.update('r', r, a_r)
+
     def similarities(self) -> dict[str, Real]:
         return {k: _normalised(self.book_decode(k, x), x, self.col_norm[k])
                 for k, x in self.state.items()}
@@ -700,7 +762,7 @@ class _FastEngine:
         q = S * np.exp(jp['r'] * float(-point['r']))[None, :]
         if self.has_z:
             q *= np.exp(jp['z'] * float(-point['z']))[:, None]
-        t = self.lp.reverse(q)
+        t = self.lp.reverse_theta(q) if self._direct else self.lp.reverse(q)
         t *= np.exp(jp['v'] * float(-point['v']))[:, None]
         t *= np.exp(jp['h'] * float(-point['h']))[None, :]
         return t
@@ -715,6 +777,7 @@ class _FastEngine:
         target *= 1.0 - mu1 - mu2
         m += target
         self.m = m
+        self._mc = m.conj()
 
     def map_image(self, point: dict[str, float] | None) -> Real:
         m = self.m
@@ -915,11 +978,13 @@ class HRN:
         if c.imu.enabled and c.focal_px <= 0.0:     # fail at start, not on the first gyro frame
             raise ConfigError('imu.enabled needs focal_px (fx / downsample, in frame pixels) for '
                               'the gyro prediction: set it (hrn-vo run derives it from calib.txt)')
-        self._blur: Real | None = None            # ĝ of codebook.kernel_sigma
+        # ĝ of codebook.kernel_sigma; real and even, so the blur of the real canvas is a real
+        # FFT pair: ĝ on the rfft2 half-spectrum
+        self._blur: Real | None = None
         if c.codebook.kernel_sigma > 0.0:
             sig = c.codebook.kernel_sigma
             fy = sfft.fftfreq(self.geometry.canvas_height)[:, None]
-            fx = sfft.fftfreq(self.geometry.canvas_width)[None, :]
+            fx = sfft.rfftfreq(self.geometry.canvas_width)[None, :]
             self._blur = np.exp(-2.0 * math.pi ** 2 * sig ** 2 * (fx ** 2 + fy ** 2))
         self.reset()
 
@@ -951,7 +1016,10 @@ class HRN:
         if self._blur is None:
             return self._canvas
         # G * I on the (toroidal) canvas, i.e. s = (Φ I) ⊙ ĝ for DFT codebooks
-        return np.real(sfft.ifft2(sfft.fft2(self._canvas, workers=1) * self._blur, workers=1))
+        spec = sfft.rfft2(self._canvas, workers=1)
+        spec *= self._blur
+        return np.asarray(sfft.irfft2(spec, s=self._canvas.shape, workers=1, overwrite_x=True),
+                          np.float64)
 
     def readout_axis(self, name: str) -> Real:
         """Physical value (px, rad, log scale) of each readout entry of factor ``name``."""

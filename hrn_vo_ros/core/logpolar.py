@@ -215,13 +215,17 @@ class LogPolarTransform:
         wrow = np.repeat(self.w, g.n_theta)
         self._Twc = sp.diags(wrow).tocsr() @ self._Tc if self.weighted else self._Tc
 
+    def lp_image(self, canvas: NDArray[np.floating]) -> NDArray[np.float64]:
+        """The log-polar image ``T · canvas``. Shapes: (H_c, W_c) real → (n_rho, n_theta)."""
+        return np.asarray((self.T @ canvas.ravel()).reshape(self.lp_shape), np.float64)
+
     def encode_image_lp(self, canvas: NDArray[np.floating]) -> Complex:
         """``Λ s`` for ``s = fft2(canvas)``, computed directly: ``fft2_LP(T · canvas)``.
 
         Shapes:
             canvas: (H_c, W_c) real; returns (n_rho, n_theta) complex128.
         """
-        lp = (self.T @ canvas.ravel()).reshape(self.lp_shape)
+        lp = self.lp_image(canvas)
         self.last_lp_image = lp
         return np.asarray(sfft.fft2(lp, workers=self.workers), np.complex128)
 
@@ -251,6 +255,25 @@ class LogPolarTransform:
         img *= self.w[:, None]
         return np.asarray(sfft.fft2(img, workers=self.workers, overwrite_x=True),
                           np.complex128)
+
+    def reverse_theta(self, y: Complex) -> Complex:
+        """Λ' y from ``y``'s spectrum along θ only (``y = fft_θ(Y)``, not transformed along ρ):
+        ``Λ' fft_ρ(y) = fft2_C(T' · ifft_θ(y))``, one 1-D inverse FFT per ring instead of a
+        2-D one. ``y`` is overwritten (pass a temporary). Shapes: y (n_rho, n_theta) →
+        (H_c, W_c)."""
+        img = sfft.ifft(y, axis=1, workers=self.workers, overwrite_x=True).ravel()
+        out = sfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers,
+                         overwrite_x=True)
+        return np.asarray(out, np.complex128)
+
+    def forward_theta(self, x: Complex) -> Complex:
+        """``fft_θ(T · ifft2_C(x))``: Λ x without its FFT along ρ (a caller that only sums over ρ
+        against another θ-spectrum uses Parseval instead). ``x`` is overwritten (pass a
+        scratch array). Shapes: as forward."""
+        img = sfft.ifft2(x, workers=self.workers, overwrite_x=True).ravel()
+        out = sfft.fft((self._Tc @ img).reshape(self.lp_shape), axis=1, workers=self.workers,
+                       overwrite_x=True)
+        return np.asarray(out, np.complex128)
 
     def reverse(self, y: Complex) -> Complex:
         """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c)."""

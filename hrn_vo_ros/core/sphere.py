@@ -64,6 +64,47 @@ class SphereWarp:
         st = np.sinc(th / np.pi) / self.f          # sin(θ) / |u|, finite at the centre
         # unit ray P⁻¹(u) of every frame pixel, (3, H·W)
         self.rays = np.stack([ux * st, uy * st, np.cos(th)])
+        self._padded_width = width + 2
+        self._padded_size = (width + 2) * (height + 2)
+        self._upper = np.array([[width + 1.0 - 1e-9], [height + 1.0 - 1e-9]])
+        self._corners = np.array([[0, 1], [width + 2, width + 3]], np.intp)[:, :, None]
+
+    def _transform(self, h: float, v: float, r: float) -> tuple[F64, F64]:
+        """``(R, o)`` with ``u' = k(R d) · (R d)_xy + o`` for the ray ``d`` of pixel ``u``.
+
+        The projection P is radially symmetric, so the final ``Rot(-r)`` moves into the ray
+        rotation: ``R = Rz(-r) · S · Rz(r)`` and ``o = centre - Rot(-r) c``.
+        """
+        cr, sr = math.cos(r), math.sin(r)
+        rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+        offset = np.array([[self.cx - (cr * h + sr * v)], [self.cy - (-sr * h + cr * v)]])
+        dist = math.hypot(h, v)
+        if dist <= 1e-12:
+            return np.eye(3), offset
+        # swing: Rodrigues about k = e_z × dir(c) by a = |c| / f, as one matrix
+        a = dist / self.f
+        kx, ky = -v / dist, h / dist
+        ca, sa = math.cos(a), math.sin(a)
+        t = 1.0 - ca
+        swing = np.array([[ca + t * kx * kx, t * kx * ky, sa * ky],
+                          [t * kx * ky, ca + t * ky * ky, -sa * kx],
+                          [-sa * ky, sa * kx, ca]])
+        return rz.T @ swing @ rz, offset
+
+    def _moved(self, flat: NDArray[np.intp], h: float, v: float, r: float) -> F64:
+        """Warped (x, y) of the pixels ``flat`` as a (2, n) array (see :meth:`positions`)."""
+        rot, offset = self._transform(h, v, r)
+        d: F64 = rot @ np.take(self.rays, flat, axis=1)
+        x, y = d[0], d[1]
+        s = np.sqrt(x * x + y * y)
+        np.maximum(s, 1e-12, out=s)                # on the axis f·θ/s -> f / z
+        k = np.arctan2(s, d[2])                    # P: equidistant, radius f·θ
+        k *= self.f
+        k /= s
+        xy = d[:2]
+        xy *= k
+        xy += offset
+        return xy
 
     def positions(self, flat: NDArray[np.intp], h: float, v: float, r: float
                   ) -> tuple[F64, F64]:
@@ -76,26 +117,8 @@ class SphereWarp:
         Shapes:
             flat: (n,); returns two (n,) arrays.
         """
-        d = self.rays[:, flat]
-        cr, sr = math.cos(r), math.sin(r)
-        x = cr * d[0] - sr * d[1]                  # Rz(r): roll about the optical axis
-        y = sr * d[0] + cr * d[1]
-        z = d[2]
-        dist = math.hypot(h, v)
-        if dist > 1e-12:                           # swing: Rodrigues about k = e_z × dir(c)
-            a = dist / self.f
-            kx, ky = -v / dist, h / dist
-            ca, sa = math.cos(a), math.sin(a)
-            kd = kx * x + ky * y                   # k · d (k_z = 0)
-            x, y, z = (x * ca + ky * z * sa + kx * kd * (1 - ca),
-                       y * ca - kx * z * sa + ky * kd * (1 - ca),
-                       z * ca + (kx * y - ky * x) * sa)
-        # P: equidistant projection, radius f·θ along the ray's image direction
-        s = np.hypot(x, y)
-        off_axis = s > 1e-12                       # on the axis f·θ/s -> f
-        k = np.where(off_axis, self.f * np.arctan2(s, z) / np.where(off_axis, s, 1.0), self.f)
-        mx, my = k * x - h, k * y - v
-        return cr * mx + sr * my + self.cx, -sr * mx + cr * my + self.cy
+        xy = self._moved(flat, h, v, r)
+        return xy[0], xy[1]
 
     def warp(self, image: NDArray[np.generic], h: float, v: float, r: float) -> F64:
         """The frame with every on-pixel moved (bilinear splat, weight = pixel value).
@@ -104,20 +127,20 @@ class SphereWarp:
             image: (height, width); returns (height, width) float64.
         """
         flat = np.flatnonzero(image)
-        vals = np.asarray(image, dtype=np.float64).ravel()[flat]
-        px, py = self.positions(flat, h, v, r)
-        w, hgt = self.width, self.height
+        vals = np.take(np.ravel(image), flat).astype(np.float64)
         # splat on a frame padded by one pixel (no per-corner bounds checks), then crop; a
         # pixel moved further out than the padding is dropped
-        px = np.clip(px + 1.0, 0.0, w + 1.0 - 1e-9)
-        py = np.clip(py + 1.0, 0.0, hgt + 1.0 - 1e-9)
-        x0, y0 = np.floor(px), np.floor(py)
-        fx, fy = px - x0, py - y0
-        wp = w + 2
-        base = (y0 * wp + x0).astype(np.intp)
-        gx, gy = 1.0 - fx, 1.0 - fy
-        idx = np.concatenate((base, base + 1, base + wp, base + wp + 1))
-        wts = np.concatenate((gx * gy, fx * gy, gx * fy, fx * fy))
-        wts *= np.tile(vals, 4)
-        out = np.bincount(idx, weights=wts, minlength=wp * (hgt + 2)).reshape(hgt + 2, wp)
+        p = self._moved(flat, h, v, r)
+        p += 1.0
+        np.clip(p, 0.0, self._upper, out=p)
+        p0 = np.floor(p)
+        frac = p - p0
+        base = (p0[1] * self._padded_width + p0[0]).astype(np.intp)
+        wx = np.stack((1.0 - frac[0], frac[0]))
+        wy = np.stack((1.0 - frac[1], frac[1]))
+        wts = wy[:, None, :] * wx[None, :, :]     # (dy, dx, pixel)
+        wts *= vals
+        idx = base + self._corners                 # (dy, dx, pixel)
+        out = np.bincount(idx.ravel(), weights=wts.ravel(), minlength=self._padded_size)
+        out = out.reshape(self.height + 2, self._padded_width)
         return np.asarray(out[1:-1, 1:-1], dtype=np.float64)

@@ -62,11 +62,16 @@ PIPELINE_DEPTH = 9
 class SpikingEngine(_FastEngine):
     """The fast (DFT, factorised) engine with spiking populations (see the module docstring).
 
+    Its S, m, p and l populations carry full 2-D spectra, so it runs the general form of the
+    float engine's iteration (``direct = False``).
+
     Args:
         cfg: The resonator configuration (fast path).
         g: Its geometry.
         scfg: Spiking settings.
     """
+
+    direct = False
 
     def __init__(self, cfg: ResonatorConfig, g: Geometry, scfg: SpikingConfig) -> None:
         super().__init__(cfg, g)
