@@ -315,7 +315,7 @@ def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
     frame[10, 20] = 1
     hrn.step(frame, 0)
     img = hrn.map_image()
-    assert img.sum() == pytest.approx(1.0, abs=1e-9)
+    assert img.sum() == pytest.approx(1.0, abs=1e-6)    # the fast engine's map is single
     yy, xx = np.mgrid[0:24, 0:32]
     assert np.sum(img * xx) == pytest.approx(20.0, abs=1e-4)
     assert np.sum(img * yy) == pytest.approx(10.0, abs=1e-4)

@@ -142,6 +142,7 @@ from hrn_vo_ros.errors import ConfigError, TrackingError
 
 Complex = NDArray[np.complex128]
 Real = NDArray[np.float64]
+Spectrum = NDArray[np.complexfloating[Any, Any]]   # complex64 or complex128 (the fast engine)
 
 NONLINEARITIES = ('identity', 'relu', 'relu_k', 'exp')
 
@@ -584,27 +585,30 @@ class _FastEngine:
         self._jphases = {k: 1j * b.phases for k, b in self.books.items()}
         self.has_z = 'z' in self.books
         self._direct = self.direct and not self.has_z and not cfg.cleanup.whiten
-        self._S_roll: Complex = np.zeros(0, np.complex128)  # n_ρ w² ⊙ S_θ (direct form)
+        # the frame and map spectra: single precision in the direct form (rounding ~1e-7 of
+        # the map's own scale; the factor states and cleanups stay double)
+        self._cdt: type[np.complexfloating] = np.complex64 if self._direct else np.complex128
+        self._S_roll: Spectrum = np.zeros(0, self._cdt)   # n_ρ w² ⊙ S_θ (direct form)
         self._sw_key: Complex | None = None
         self._sw: Complex = np.zeros(0, np.complex128)
         self.state: dict[str, Complex] = {}
         self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
         self.inputs: dict[str, Complex] = {}   # the last cleanup inputs (marginals) a
-        self.m = np.zeros((g.canvas_height, g.canvas_width), np.complex128)
+        self.m: Spectrum = np.zeros((g.canvas_height, g.canvas_width), self._cdt)
         self.m0 = self.m
         self._mc = self.m                           # m̂* (changes once per frame)
         self._mvh = np.empty_like(self.m)           # m̂ ⊙ v̂ ⊙ ĥ scratch (Λ_w copies it)
-        self._m0_src: Complex | None = None         # the m0 that _m0_scaled = μ2 m0 was made of
+        self._m0_src: Spectrum | None = None         # the m0 that _m0_scaled = μ2 m0 was made of
         self._m0_mu2 = 0.0
         self._m0_scaled = self.m0
 
-    def encode(self, canvas: Real) -> Complex:
+    def encode(self, canvas: Real) -> Spectrum:
         """The frame's log-polar spectrum: ``S`` (2-D), or ``S_θ`` in the direct form."""
         if self._direct:
-            lp = self.lp.lp_image(canvas)
-            S = np.asarray(sfft.fft(lp, axis=1, workers=1), np.complex128)
+            lp = self.lp.lp_image(canvas).astype(np.float32)
+            S: Spectrum = np.asarray(sfft.fft(lp, axis=1, workers=1), self._cdt)
             rows = self.g.n_rho * (self.lp.w ** 2 if self.lp.weighted else np.ones(len(lp)))
-            self._S_roll = S * rows[:, None]
+            self._S_roll = S * rows.astype(np.float32)[:, None]
             return S
         S = self.lp.encode_image_lp(canvas)
         if self.lp.weighted and self.lp.last_lp_image is not None:
@@ -620,7 +624,7 @@ class _FastEngine:
             self.state['z'] = fhrr.random_phasor(g.n_rho, rng)
         if self.cfg.cleanup.init == 'identity':       # seed^0 = 1: zero shift, roll, zoom
             self.state = {k: np.ones_like(x) for k, x in self.state.items()}
-        self.m0 = sfft.fft2(canvas, workers=1)          # m̂(0) = s(0) = Φ I(0)
+        self.m0 = sfft.fft2(canvas, workers=1).astype(self._cdt)   # m̂(0) = s(0) = Φ I(0)
         self.m = self.m0.copy()
         self._mc = self.m.conj()
 
@@ -689,7 +693,7 @@ class _FastEngine:
         h, v, r = st['h'], st['v'], st['r']
         z = st.get('z')
         S = self.send('S', S)
-        m = self.send('m', self.m)
+        m = self.send('m', np.asarray(self.m, np.complex128))   # (double unless direct)
         mc = self._mc if m is self.m else m.conj()
         q = S * r.conj()[None, :]
         if z is not None:
@@ -727,16 +731,18 @@ class _FastEngine:
         # iterate() in the direct form (class docstring); the same estimates within rounding
         st = self.state
         h, v, r = st['h'], st['v'], st['r']
-        u = self.lp.reverse_theta(S_theta * r.conj()[None, :])   # p̂ = Λ'(S ⊙ r̂*)
+        dt = self._cdt
+        hs, vs = h.astype(dt), v.astype(dt)
+        u = self.lp.reverse_theta(S_theta * r.conj().astype(dt)[None, :])   # Λ'(S ⊙ r̂*)
         u *= self._mc                                            # p̂ ⊙ m̂*
-        mvh = np.multiply(self.m, v[:, None], out=self._mvh)
-        mvh *= h[None, :]
+        mvh = np.multiply(self.m, vs[:, None], out=self._mvh)
+        mvh *= hs[None, :]
         lt = self.lp.forward_theta(mvh)                          # fft_θ(T ifft2(m̂ ⊙ v̂ ⊙ ĥ))
         np.conjugate(lt, out=lt)
         lt *= self._S_roll
-        a_r = lt.sum(axis=0)                                     # Σ_kρ S_w ⊙ l̂_w*
-        a_h = np.einsum('i,ij->j', v.conj(), u)
-        a_v = np.einsum('ij,j->i', u, h.conj())
+        a_r = lt.sum(axis=0, dtype=np.complex128)                # Σ_kρ S_w ⊙ l̂_w*
+        a_h = np.einsum('i,ij->j', vs.conj(), u).astype(np.complex128)
+        a_v = np.einsum('ij,j->i', u, hs.conj()).astype(np.complex128)
         self.inputs.update(h=a_h, v=a_v, r=a_r)
         st['h'] = self.update('h', h, a_h)
         st['v'] = self.update('v', v, a_v)
@@ -757,14 +763,14 @@ class _FastEngine:
     def shift(self, name: str, delta: float) -> None:
         self.state[name] = self.state[name] * fhrr.power(self.books[name].phases, delta)
 
-    def _to_map(self, S: Complex, point: dict[str, float]) -> Complex:
-        jp = self._jphases                          # z0^a = exp((1j φ) a), as fhrr.power
-        q = S * np.exp(jp['r'] * float(-point['r']))[None, :]
+    def _to_map(self, S: Spectrum, point: dict[str, float]) -> Spectrum:
+        jp, dt = self._jphases, self._cdt           # z0^a = exp((1j φ) a), as fhrr.power
+        q = S * np.exp(jp['r'] * float(-point['r'])).astype(dt)[None, :]
         if self.has_z:
             q *= np.exp(jp['z'] * float(-point['z']))[:, None]
         t = self.lp.reverse_theta(q) if self._direct else self.lp.reverse(q)
-        t *= np.exp(jp['v'] * float(-point['v']))[:, None]
-        t *= np.exp(jp['h'] * float(-point['h']))[None, :]
+        t *= np.exp(jp['v'] * float(-point['v'])).astype(dt)[:, None]
+        t *= np.exp(jp['h'] * float(-point['h'])).astype(dt)[None, :]
         return t
 
     def update_map(self, S: Complex, point: dict[str, float], mu1: float, mu2: float) -> None:
@@ -789,7 +795,7 @@ class _FastEngine:
             if self.has_z:
                 m = m * fhrr.power(b['z'].phases, point['z'])[:, None]
             m = self.lp.reverse(m)
-        return np.real(sfft.ifft2(m, workers=1))
+        return np.asarray(np.real(sfft.ifft2(m, workers=1)), np.float64)
 
 
 class _DenseEngine:

@@ -214,6 +214,7 @@ class LogPolarTransform:
         self.w = ring_weights(g)
         wrow = np.repeat(self.w, g.n_theta)
         self._Twc = sp.diags(wrow).tocsr() @ self._Tc if self.weighted else self._Tc
+        self._single = (self._Tc.astype(np.complex64), self._Trc.astype(np.complex64))
 
     def lp_image(self, canvas: NDArray[np.floating]) -> NDArray[np.float64]:
         """The log-polar image ``T · canvas``. Shapes: (H_c, W_c) real → (n_rho, n_theta)."""
@@ -259,21 +260,23 @@ class LogPolarTransform:
     def reverse_theta(self, y: Complex) -> Complex:
         """Λ' y from ``y``'s spectrum along θ only (``y = fft_θ(Y)``, not transformed along ρ):
         ``Λ' fft_ρ(y) = fft2_C(T' · ifft_θ(y))``, one 1-D inverse FFT per ring instead of a
-        2-D one. ``y`` is overwritten (pass a temporary). Shapes: y (n_rho, n_theta) →
-        (H_c, W_c)."""
+        2-D one. ``y`` is overwritten (pass a temporary). complex64 in, complex64 out.
+        Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
+        tr = self._single[1] if y.dtype == np.complex64 else self._Trc
         img = sfft.ifft(y, axis=1, workers=self.workers, overwrite_x=True).ravel()
-        out = sfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers,
-                         overwrite_x=True)
-        return np.asarray(out, np.complex128)
+        out = sfft.fft2((tr @ img).reshape(self.cart_shape), workers=self.workers,
+                        overwrite_x=True)
+        return np.asarray(out, y.dtype)
 
     def forward_theta(self, x: Complex) -> Complex:
         """``fft_θ(T · ifft2_C(x))``: Λ x without its FFT along ρ (a caller that only sums over ρ
         against another θ-spectrum uses Parseval instead). ``x`` is overwritten (pass a
-        scratch array). Shapes: as forward."""
+        scratch array). complex64 in, complex64 out. Shapes: as forward."""
+        t = self._single[0] if x.dtype == np.complex64 else self._Tc
         img = sfft.ifft2(x, workers=self.workers, overwrite_x=True).ravel()
-        out = sfft.fft((self._Tc @ img).reshape(self.lp_shape), axis=1, workers=self.workers,
+        out = sfft.fft((t @ img).reshape(self.lp_shape), axis=1, workers=self.workers,
                        overwrite_x=True)
-        return np.asarray(out, np.complex128)
+        return np.asarray(out, x.dtype)
 
     def reverse(self, y: Complex) -> Complex:
         """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c)."""

@@ -96,7 +96,7 @@ class SpikingEngine(_FastEngine):
 
     def encode(self, canvas: Real) -> Complex:
         self.pixels = int(np.count_nonzero(canvas))
-        return super().encode(canvas)
+        return np.asarray(super().encode(canvas), np.complex128)   # general form: double
 
     def start(self, canvas: Real, rng: np.random.Generator) -> None:
         super().start(canvas, rng)
