@@ -92,6 +92,9 @@ def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
     euler = json.loads(capsys.readouterr().out.strip())
     assert euler['calibration']['convention'] == 'euler'
     assert euler['metrics']['median_angle_deg'] > 0.2
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
+                 '--roll-zero', '1.5']) == 0
+    assert json.loads(capsys.readouterr().out.strip())['calibration']['roll_zero_s'] == 1.5
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '3']) == 0
     out = capsys.readouterr().out.strip().splitlines()
     assert any(line.startswith('lag scan (median_angle_deg)') for line in out)
@@ -106,6 +109,8 @@ def test_evaluate_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     ds, est = _dataset(tmp_path)
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '-2']) == 2
     assert '--lag-scan' in capsys.readouterr().err
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--roll-zero', '-1']) == 2
+    assert 'roll zeroing window' in capsys.readouterr().err
     assert main(['evaluate', str(ds), str(tmp_path / 'missing.csv'), '--kind', 'rotation']) == 3
     assert 'not found' in capsys.readouterr().err
     short = tmp_path / 'short.csv'

@@ -216,6 +216,24 @@ def test_lag_scan_finds_a_position_that_lags_the_roll() -> None:
         lag_scan(gt, est, 'arm', np.array([np.nan]))
 
 
+def test_roll_zero_window_is_a_diagnostic_of_the_start() -> None:
+    """A roll off by 0.5 deg only in the first 0.1 s shifts every later roll error under the
+    protocol; a longer zeroing window (the diagnostic) sees through it."""
+    gt, est = _arm_case()
+    t = est.t * 1e-9
+    early = t <= t[0] + 0.1
+    assert 2 <= int(early.sum()) < 0.05 * len(t)
+    r = est.r + np.where(early, np.deg2rad(0.5), 0.0)
+    est = EstimateSeries(est.t, est.h, est.v, r)
+    protocol = evaluate(gt, est, 'arm')
+    assert protocol.metrics['median_roll_deg'] == pytest.approx(0.5, abs=0.05)
+    longer = evaluate(gt, est, 'arm', roll_zero_s=2.0)
+    assert longer.metrics['median_roll_deg'] < 0.05
+    assert longer.calibration['roll_zero_s'] == 2.0
+    with pytest.raises(ConfigError, match='roll zeroing window'):
+        evaluate(gt, est, 'arm', roll_zero_s=0.0)
+
+
 def test_umeyama_recovers_similarity_and_guards_reflection() -> None:
     rng = np.random.default_rng(3)
     src = rng.normal(size=(50, 3))

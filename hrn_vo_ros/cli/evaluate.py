@@ -7,9 +7,11 @@ cross-correlation, 70/30 split, Umeyama calibration, median errors on the test p
 table and, last, one JSON line (``--json``: the JSON line only). ``--plot OUT.png`` draws the
 calibrated trajectory against the ground truth. ``--lag-scan MS`` (a diagnostic, not the
 protocol) re-evaluates with the lag moved by -MS..+MS in 1 ms steps and reports where the
-headline error is lowest (the JSON gets a ``lag_scan`` entry). ``--convention`` chooses how
-pan, tilt and roll make a rotation (default ``swing-twist``, what an image shift and an image
-rotation measure; ``euler``: ``Ry(pan) Rx(tilt) Rz(roll)``).
+headline error is lowest (the JSON gets a ``lag_scan`` entry); ``--roll-zero S`` (also a
+diagnostic) zeroes the roll on the first S seconds of estimates instead of the protocol's
+0.1 s. ``--convention`` chooses how pan, tilt and roll make a rotation (default
+``swing-twist``, what an image shift and an image rotation measure; ``euler``:
+``Ry(pan) Rx(tilt) Rz(roll)``).
 """
 
 from __future__ import annotations
@@ -55,6 +57,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument('--lag-scan', type=int, default=0, metavar='MS',
                    help='also evaluate with the lag moved by -MS..+MS ms (1 ms steps) and '
                         'report where the headline error is lowest (diagnostic)')
+    p.add_argument('--roll-zero', type=float, default=0.1, metavar='S',
+                   help='zero the roll on the estimates of the first S seconds (default 0.1: '
+                        'the protocol; longer only as a diagnostic of how much the headline '
+                        'depends on the first few event packets)')
     p.add_argument('--plot', type=Path, default=None, help='write a trajectory plot (PNG)')
     p.add_argument('--json', action='store_true', help='print only the JSON line')
     p.set_defaults(func=run)
@@ -64,6 +70,7 @@ def format_table(res: EvalResult) -> str:
     """A human-readable table of the result."""
     rows = [('kind', res.kind), ('calibration', str(res.calibration.get('segment', ''))),
             ('rotation convention', str(res.calibration.get('convention', ''))),
+            ('roll zeroed on', f'first {res.calibration.get("roll_zero_s", 0.1)} s of estimates'),
             ('lag', f'{res.lag_s * 1e3:+.1f} ms'), ('roll correlation', f'{res.roll_corr:.3f}'),
             ('estimates used / calib / evaluated',
              f'{res.counts["used"]} / {res.counts["calibration"]} / {res.counts["evaluated"]}'),
@@ -81,13 +88,14 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.lag_scan <= 500:
         raise ConfigError(f'--lag-scan {args.lag_scan}: give 0 (off) to 500 ms')
     res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag,
-                   convention=args.convention)
+                   convention=args.convention, roll_zero_s=args.roll_zero)
     out = res.to_dict()
     scan_text = ''
     if args.lag_scan:
         offsets_ms = np.arange(-args.lag_scan, args.lag_scan + 1)
         _, curves = lag_scan(gt, est, args.kind, offsets_ms * 1e-3, calib=args.calib,
-                             lag_s=res.lag_s, convention=args.convention)
+                             lag_s=res.lag_s, convention=args.convention,
+                             roll_zero_s=args.roll_zero)
         metric = TARGETS[args.kind][0]
         values = curves[metric]
         best = int(np.argmin(values))
