@@ -55,12 +55,11 @@ sys.path.insert(0, str(ROOT))
 from hrn_vo_ros.core.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation import EstimateSeries, ROTATION_CONVENTIONS  # noqa: E402
 from hrn_vo_ros.core.frames import Packetizer, with_calibration  # noqa: E402
-from hrn_vo_ros.core.hrn import needs_focal  # noqa: E402
 from hrn_vo_ros.core.simulator import simulate, SimulatorConfig  # noqa: E402
 from hrn_vo_ros.errors import ConfigError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
 from hrn_vo_ros.io.estimates import write_estimates  # noqa: E402
-from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
+from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -138,16 +137,12 @@ def run_baseline(case: Case, dataset: Path, out: Path, sphere: bool = False) -> 
     """The baseline on the same frames as ``hrn-vo run`` (same packetizer settings), with the
     sphere correction only if ``sphere`` and the config enables it for the HRN."""
     t0 = time.perf_counter()
-    width, height = ecd.read_sensor_size(dataset)
-    calib = ecd.read_calib(dataset)
-    pk = {'sensor_width': width, 'sensor_height': height}
-    pcfg, rcfg = load_configs(ROOT / 'config' / case.config, packetizer=pk, resonator={})
-    if needs_focal(rcfg):          # as hrn-vo run: fx / downsample (sphere correction)
-        pcfg, rcfg = load_configs(ROOT / 'config' / case.config, packetizer=pk,
-                                  resonator={'focal_px': calib.fx / pcfg.downsample})
-    bcfg = replace(config_like(rcfg), width=pcfg.width, height=pcfg.height)
+    dc = dataset_configs(ROOT / 'config' / case.config, dataset)   # as hrn-vo run
+    pcfg = dc.packetizer
+    bcfg = replace(config_like(dc.resonator), width=pcfg.width, height=pcfg.height)
     bcfg = replace(bcfg, sphere=bcfg.sphere and sphere)
-    packetizer = Packetizer(with_calibration(pcfg, calib))
+    packetizer = Packetizer(with_calibration(pcfg, ecd.read_calib(dataset)))
+    width, height = pcfg.sensor_width, pcfg.sensor_height
     base = PhaseCorrelationBaseline(bcfg)
     rows = []
     for batch in ecd.iter_events(dataset, sensor_size=(width, height)):

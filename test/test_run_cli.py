@@ -20,7 +20,7 @@ from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import write_sequence
 from hrn_vo_ros.io.estimates import read_estimates
-from hrn_vo_ros.io.yamlconfig import load_configs
+from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((ROOT / 'config').glob('*.yaml'))
@@ -173,6 +173,33 @@ def test_yaml_keys_are_exactly_the_config_fields(name: str) -> None:
     for line in text.splitlines():
         if ':' in line and not line.strip().startswith('#') and not line.rstrip().endswith(':'):
             assert '#' in line, f'{name}: value without an explanation: {line.strip()}'
+
+
+def test_dataset_configs_derive_what_run_and_graph_share(dataset: Path) -> None:
+    """Sensor size, frame size and focal length from the dataset; the sphere check."""
+    rot = ROOT / 'config/shapes_rotation.yaml'
+    dc = dataset_configs(rot, dataset, packetizer={'downsample': 4})
+    p, r = dc.packetizer, dc.resonator
+    assert (p.sensor_width, p.sensor_height) == (240, 180) and (r.width, r.height) == (60, 45)
+    assert r.focal_px == pytest.approx(200.0 / 4)           # sphere on: fx / downsample
+    assert dc.resonator_overrides['focal_px'] == r.focal_px  # what a node is given
+    plain = dataset_configs(ROOT / 'config/robot_arm.yaml', dataset).resonator
+    assert plain.focal_px == 0.0                               # neither IMU nor sphere
+    assert dataset_configs(rot, dataset, resonator={'focal_px': 70.0}).resonator.focal_px == 70
+    with pytest.raises(ConfigError, match='needs equidistant-rectified frames'):
+        dataset_configs(rot, dataset, packetizer={'rectify': 'pinhole'})
+
+
+def test_graph_takes_the_same_dataset_parameters(dataset: Path, tmp_path: Path) -> None:
+    from hrn_vo_ros.cli.graph import dataset_overrides
+    pk, rs = dataset_overrides(dataset, ROOT / 'config/shapes_rotation.yaml', imu=True)
+    assert pk['sensor_width'] == 240 and rs['width'] == 96 and rs['imu.enabled'] is True
+    assert rs['focal_px'] == rs['odometry.focal_length_px'] == pytest.approx(200.0 / 2.5)
+    bad = tmp_path / 'pinhole.yaml'
+    text = (ROOT / 'config/shapes_rotation.yaml').read_text()
+    bad.write_text(text.replace('rectify: equidistant', 'rectify: pinhole', 1))
+    with pytest.raises(ConfigError, match='needs equidistant-rectified frames'):
+        dataset_overrides(dataset, bad, imu=False)             # as hrn-vo run refuses it
 
 
 def test_load_configs_defaults_overrides_and_errors(tmp_path: Path) -> None:

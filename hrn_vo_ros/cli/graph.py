@@ -215,30 +215,27 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
                       ) -> tuple[dict[str, object], dict[str, object]]:
     """The parameters ``hrn-vo run`` derives from the dataset, so the graph computes the same.
 
-    Sensor size from the dataset, the resonator's frame size from the packetizer's, the
-    resonator's focal length (IMU and sphere correction, when ``focal_px`` is 0) and the
-    odometry focal length from ``calib.txt`` divided by the downsampling factor.
+    :func:`~hrn_vo_ros.io.yamlconfig.dataset_configs` (sensor size, frame size, the
+    resonator's focal length where the IMU or the sphere correction need it; refuses the sphere
+    correction on frames that are not equidistant) plus the odometry focal length, fx from
+    ``calib.txt`` divided by the downsampling factor.
 
     Returns:
         ``(packetizer, resonator)`` parameter overrides.
-    """
-    from hrn_vo_ros.core.hrn import needs_focal
-    from hrn_vo_ros.io.ecd import read_calib, read_sensor_size
-    from hrn_vo_ros.io.yamlconfig import load_configs
 
-    pk: dict[str, object] = {}
+    Raises:
+        ConfigError, DatasetError: as ``dataset_configs``.
+    """
+    from hrn_vo_ros.io.ecd import read_calib
+    from hrn_vo_ros.io.yamlconfig import dataset_configs
+
     rs: dict[str, object] = {'imu.enabled': imu}
     if dataset is None:
-        return pk, rs
-    width, height = read_sensor_size(dataset)
-    pk = {'sensor_width': width, 'sensor_height': height}
-    pcfg, rcfg = load_configs(params_file, packetizer=pk, resonator=rs)
-    rs.update(width=pcfg.width, height=pcfg.height)
-    focal = read_calib(dataset).fx / pcfg.downsample
-    rs['odometry.focal_length_px'] = focal
-    if needs_focal(rcfg):
-        rs['focal_px'] = focal
-    return pk, rs
+        return {}, rs
+    dc = dataset_configs(params_file, dataset, resonator=rs)
+    focal = read_calib(dataset).fx / dc.packetizer.downsample
+    return dict(dc.packetizer_overrides), {**dc.resonator_overrides,
+                                           'odometry.focal_length_px': focal}
 
 
 def run_graph(bag: Path, out_bag: Path, log_dir: Path, *, params_file: Path | None,

@@ -26,13 +26,12 @@ from hrn_vo_ros.core.backends import BackendConfig, BACKENDS, make_backend, Spik
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.evaluation import EstimateSeries
 from hrn_vo_ros.core.frames import Packetizer, with_calibration
-from hrn_vo_ros.core.hrn import needs_focal
 from hrn_vo_ros.core.imu import GyroIntegrator
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError
 from hrn_vo_ros.io import ecd
 from hrn_vo_ros.io.estimates import write_estimates
-from hrn_vo_ros.io.yamlconfig import load_configs
+from hrn_vo_ros.io.yamlconfig import dataset_configs
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -80,27 +79,15 @@ def run(args: argparse.Namespace) -> int:
     dataset: Path = args.dataset
     if not dataset.exists():
         raise DatasetError('dataset not found (a folder or zip with events.txt)', path=dataset)
-    width, height = ecd.read_sensor_size(dataset)
     pk_over, rs_over = parse_overrides(args.overrides)
     sp_over = {k.removeprefix('spiking.'): rs_over.pop(k) for k in list(rs_over)
                if k.startswith('spiking.')}
     backend = BackendConfig(args.backend, from_dict(SpikingConfig, sp_over, source='--set'))
-    pk_over = {'sensor_width': width, 'sensor_height': height, **pk_over}
     if args.imu:
         rs_over['imu.enabled'] = True
-    pcfg, rcfg = load_configs(args.config, packetizer=pk_over, resonator=rs_over)
-    # The resonator's frame size follows the packetizer's.
-    size = {'width': pcfg.width, 'height': pcfg.height}
-    if (rcfg.width, rcfg.height) != (pcfg.width, pcfg.height):
-        pcfg, rcfg = load_configs(args.config, packetizer=pk_over, resonator={**rs_over, **size})
-    if rcfg.sphere.enabled and pcfg.rectify != 'equidistant':
-        raise ConfigError(f'sphere.enabled needs equidistant-rectified frames (packetizer rectify '
-                          f'is {pcfg.rectify}): set packetizer.rectify=equidistant or '
-                          'sphere.enabled=false')
-    if needs_focal(rcfg):
-        focal = ecd.read_calib(dataset).fx / pcfg.downsample
-        pcfg, rcfg = load_configs(args.config, packetizer=pk_over,
-                                  resonator={**rs_over, **size, 'focal_px': focal})
+    dc = dataset_configs(args.config, dataset, packetizer=pk_over, resonator=rs_over)
+    pcfg, rcfg = dc.packetizer, dc.resonator
+    width, height = pcfg.sensor_width, pcfg.sensor_height
     gyro: GyroIntegrator | None = None
     if rcfg.imu.enabled:
         rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)

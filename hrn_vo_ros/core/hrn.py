@@ -346,6 +346,15 @@ def needs_focal(cfg: ResonatorConfig) -> bool:
     return (cfg.imu.enabled or cfg.sphere.enabled) and not cfg.focal_px
 
 
+def sphere_rectify_problem(rectify: str, cfg: ResonatorConfig) -> str | None:
+    """Why ``cfg``'s sphere correction cannot run on frames rectified with ``rectify`` (the
+    packetizer's mode; the warp assumes the equidistant projection), or None."""
+    if cfg.sphere.enabled and rectify != 'equidistant':
+        return (f'sphere.enabled needs equidistant-rectified frames (packetizer rectify is '
+                f'{rectify}): set packetizer.rectify=equidistant or sphere.enabled=false')
+    return None
+
+
 def without_unset_sphere(cfg: ResonatorConfig) -> tuple[ResonatorConfig, str | None]:
     """``cfg`` with the sphere correction off, and why, if ``focal_px`` is unset (a caller
     without a calibration, such as the resonator node, still runs); else ``(cfg, None)``."""

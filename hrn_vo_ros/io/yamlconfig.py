@@ -12,7 +12,8 @@ Layout, also read by ``ros2 launch`` (nested dictionaries become dotted paramete
 
 :func:`load_configs` builds ``PacketizerConfig`` and ``ResonatorConfig`` from such a file; keys
 that belong to the node-only configs (or a ``node`` sub-section) are skipped, anything else
-unknown is an error naming the file.
+unknown is an error naming the file. :func:`dataset_configs` adds what a dataset implies (sensor
+size, frame size, focal length), as ``hrn-vo run``, ``hrn-vo graph`` and the benchmarks need it.
 """
 
 from __future__ import annotations
@@ -26,9 +27,10 @@ import yaml
 
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.frames import PacketizerConfig
-from hrn_vo_ros.core.hrn import ResonatorConfig
+from hrn_vo_ros.core.hrn import needs_focal, ResonatorConfig, sphere_rectify_problem
 from hrn_vo_ros.core.nodeconfig import PacketizerNodeConfig, ResonatorNodeConfig
 from hrn_vo_ros.errors import ConfigError
+from hrn_vo_ros.io import ecd
 
 PACKETIZER_NODE = 'packetizer_node'
 RESONATOR_NODE = 'resonator_node'
@@ -36,6 +38,45 @@ _NODE_ONLY: dict[str, set[str]] = {
     PACKETIZER_NODE: {f.name for f in dataclasses.fields(PacketizerNodeConfig)} | {'node'},
     RESONATOR_NODE: {f.name for f in dataclasses.fields(ResonatorNodeConfig)} | {'node'},
 }
+
+
+@dataclasses.dataclass(frozen=True)
+class DatasetConfigs:
+    """The stage configs for one dataset and the overrides that give them (for nodes, which
+    take the overrides as parameters)."""
+
+    packetizer: PacketizerConfig
+    resonator: ResonatorConfig
+    packetizer_overrides: dict[str, Any]
+    resonator_overrides: dict[str, Any]
+
+
+def dataset_configs(path: Path | str | None, dataset: Path, *,
+                    packetizer: Mapping[str, Any] | None = None,
+                    resonator: Mapping[str, Any] | None = None) -> DatasetConfigs:
+    """:func:`load_configs` plus what the dataset implies.
+
+    The sensor size (``meta.json`` or the events), the resonator's frame size = the
+    packetizer's, and ``focal_px`` = fx / downsample from ``calib.txt`` where the IMU prediction
+    or the sphere correction need it and it is unset. Overrides from the caller win over the
+    file; the sensor size wins over both.
+
+    Raises:
+        ConfigError: as :func:`load_configs`, or for the sphere correction on frames that are
+            not equidistant-rectified. DatasetError: for a missing or malformed dataset file.
+    """
+    width, height = ecd.read_sensor_size(dataset)
+    pk = {**(packetizer or {}), 'sensor_width': width, 'sensor_height': height}
+    rs = dict(resonator or {})
+    pcfg, rcfg = load_configs(path, packetizer=pk, resonator=rs)
+    rs.update(width=pcfg.width, height=pcfg.height)
+    if needs_focal(rcfg):
+        rs['focal_px'] = ecd.read_calib(dataset).fx / pcfg.downsample
+    pcfg, rcfg = load_configs(path, packetizer=pk, resonator=rs)
+    problem = sphere_rectify_problem(pcfg.rectify, rcfg)
+    if problem is not None:
+        raise ConfigError(problem)
+    return DatasetConfigs(pcfg, rcfg, pk, rs)
 
 
 def load_sections(path: Path | str) -> dict[str, dict[str, Any]]:
