@@ -594,6 +594,8 @@ class _FastEngine:
         self._jphases = {k: 1j * b.phases for k, b in self.books.items()}
         self.has_z = 'z' in self.books
         self._direct = self.direct and not self.has_z and not cfg.cleanup.whiten
+        self._hv_rows = (self._direct and self._full['h'] and self._full['v']
+                         and len(self.books['h'].phases) == len(self.books['v'].phases))
         # the frame and map spectra: single precision in the direct form (rounding ~1e-7 of
         # the map's own scale; the factor states and cleanups stay double)
         self._cdt: type[np.complexfloating] = np.complex64 if self._direct else np.complex128
@@ -659,19 +661,36 @@ class _FastEngine:
 
     def _clean(self, name: str, a: Complex) -> Complex:
         # C_X(u) with u's weighted marginal a along the factor's axis: f(X p(Re X† a)).
-        bound = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
         if self._full[name]:
-            # p acts entrywise, so the codebook's entry order cancels between X† and X: the
-            # similarities stay in FFT order (n Re ifft a) and X p is their FFT
-            c = sfft.ifft(a, workers=1).real
-            c *= a.shape[0]
-            entries = c[self._perm_dec[name]]
-        else:
-            c = entries = np.real(self.book_decode(name, a))
-        self.drive[name] = entries / bound if bound > 0 else np.zeros_like(c)
+            return np.asarray(self._clean_full((name,), a[None, :])[0], np.complex128)
+        c = np.real(self.book_decode(name, a))
+        bound = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
+        self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
         p = cleanup_weights(c, self.cfg.cleanup, bound)
-        y = (sfft.fft(p, workers=1) if self._full[name] else self.book_encode(name, p))
-        return fhrr.phasor(y)
+        return fhrr.phasor(self.book_encode(name, p))
+
+    def _clean_full(self, names: tuple[str, ...], a: Complex) -> Complex:
+        """``_clean`` of factors with complete DFT codebooks of one length, a row each (one FFT
+        pair for all). p acts entrywise, so the entry order cancels between X† and X: the
+        similarities stay in FFT order (n Re ifft a) and X p is their FFT. Shapes: (k, n)."""
+        n = a.shape[1]
+        bound = self.col_norm[names[0]] * np.sqrt(np.einsum('ij,ij->i', a, a.conj()).real)
+        c = sfft.ifft(a, axis=1, workers=1).real
+        c *= n
+        perm = self._perm_dec[names[0]]
+        p = np.empty_like(c)
+        for i, name in enumerate(names):
+            b = float(bound[i])
+            self.drive[name] = c[i, perm] / b if b > 0 else np.zeros(n)
+            p[i] = cleanup_weights(c[i], self.cfg.cleanup, b)
+        return fhrr.phasor(sfft.fft(p, axis=1, workers=1))
+
+    def _blend(self, x: Complex, cleaned: Complex) -> Complex:
+        """x̂ ← (1-γ) x̂ + γ C_X(·), in place of ``cleaned``."""
+        gam = state_gamma(self.cfg)
+        cleaned *= gam
+        cleaned += (1 - gam) * x
+        return cleaned
 
     def send(self, name: str, x: Complex) -> Complex:
         """Hook: the population ``name`` (S, m, p, l) sends ``x`` (identity here; the spiking
@@ -681,11 +700,7 @@ class _FastEngine:
     def update(self, name: str, x: Complex, a: Complex) -> Complex:
         """Hook: the state update x̂ ← (1-γ) x̂ + γ C_X(a) of factor ``name`` from its marginal
         drive ``a`` (the spiking backend replaces it with its neuron layers)."""
-        gam = state_gamma(self.cfg)
-        y = self._clean(name, a)
-        y *= gam
-        y += (1 - gam) * x
-        return y
+        return self._blend(x, self._clean(name, a))
 
     def _weighted_input(self, S: Complex) -> Complex:
         if not self.lp.weighted:
@@ -753,8 +768,13 @@ class _FastEngine:
         a_h = np.einsum('i,ij->j', vs.conj(), u).astype(np.complex128)
         a_v = np.einsum('ij,j->i', u, hs.conj()).astype(np.complex128)
         self.inputs.update(h=a_h, v=a_v, r=a_r)
-        st['h'] = self.update('h', h, a_h)
-        st['v'] = self.update('v', v, a_v)
+        if self._hv_rows:                  # one cleanup call for both (update() is not a hook
+            hv = self._blend(np.stack((h, v)), self._clean_full(('h', 'v'),   # in this form)
+                                                                np.stack((a_h, a_v))))
+            st['h'], st['v'] = hv[0], hv[1]
+        else:
+            st['h'] = self.update('h', h, a_h)
+            st['v'] = self.update('v', v, a_v)
         st['r'] = self.update('r', r, a_r)
 
     def similarities(self) -> dict[str, Real]:
