@@ -21,30 +21,17 @@ import argparse
 from pathlib import Path
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 import zipfile
 
 import numpy as np
 
-from hrn_vo_ros.core.events import EventArray, EventChecksum
-from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
+from hrn_vo_ros.core.events import EventChecksum
+from hrn_vo_ros.core.sequence import random_sequence
 from hrn_vo_ros.io import bags, convert, ecd, eventpacket, ros1bag
-
-
-def synthetic(seconds: float, rate: float, seed: int = 0) -> Sequence:
-    rng = np.random.default_rng(seed)
-    n = int(seconds * rate)
-    t = np.sort(rng.integers(0, int(seconds * 1e9), n)) // 1000 * 1000
-    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
-                                rng.integers(0, 2, n))
-    ti = np.arange(0, int(seconds * 1e9), 1_000_000, dtype=np.int64)
-    imu = ImuData(t=ti, acc=rng.normal(size=(ti.size, 3)), gyro=rng.normal(size=(ti.size, 3)))
-    tg = ti[::5]
-    gt = Trajectory(t=tg, pos=rng.normal(size=(tg.size, 3)),
-                    quat=np.tile([0.0, 0.0, 0.0, 1.0], (tg.size, 1)))
-    calib = CameraCalibration(width=240, height=180, fx=199.0, fy=198.0, cx=120.0, cy=90.0)
-    return Sequence(events=ev, calib=calib, imu=imu, groundtruth=gt)
 
 
 def timed(fn: object, repeats: int) -> float:
@@ -70,7 +57,7 @@ def main() -> None:
         seq = simulate('rotation', args.seconds, seed=0)
         print(f'simulated {args.seconds:g} s rotation in {time.perf_counter() - t0:.1f} s')
     else:
-        seq = synthetic(args.seconds, args.rate)
+        seq = random_sequence(np.random.default_rng(0), args.seconds, args.rate, stamps='us')
     n = len(seq.events)
     work = Path(tempfile.mkdtemp(prefix='bench_convert_'))
     try:

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.cli.main import main as hrn_vo
-from hrn_vo_ros.core.events import EventArray, EventChecksum
+from hrn_vo_ros.core.events import EventChecksum
 from hrn_vo_ros.core.playback import play, PlaybackConfig, PlaybackSchedule
-from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.core.sequence import random_sequence
 from hrn_vo_ros.errors import ConfigError, DecodeError
 from hrn_vo_ros.io import bags, convert, ecd
 
@@ -70,19 +70,10 @@ def test_config_is_validated() -> None:
 @pytest.fixture(scope='module')
 def ten_second_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object]]:
     """A 10 s bag: 20 k events/s in 10 ms packets, IMU at 200 Hz, ground truth at 100 Hz."""
-    rng = np.random.default_rng(5)
     n = 200_000
-    t = np.sort(rng.integers(0, 10 * 10**9, n))
-    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
-                                rng.integers(0, 2, n))
-    ti = np.arange(0, 10 * 10**9, 5_000_000, dtype=np.int64)
-    tg = ti[::2]
-    seq = Sequence(events=ev, calib=CameraCalibration(width=240, height=180, fx=199.0, fy=198.0,
-                                                      cx=120.0, cy=90.0),
-                   imu=ImuData(t=ti, acc=rng.normal(size=(ti.size, 3)),
-                               gyro=rng.normal(size=(ti.size, 3))),
-                   groundtruth=Trajectory(t=tg, pos=rng.normal(size=(tg.size, 3)),
-                                          quat=np.tile([0.0, 0.0, 0.0, 1.0], (tg.size, 1))))
+    seq = random_sequence(np.random.default_rng(5), 10.0, n / 10.0, imu_period_ns=5_000_000,
+                          gt_every=2)
+    ev = seq.events
     tmp = tmp_path_factory.mktemp('player')
     folder = ecd.write_sequence(tmp / 'seq', seq)
     stats = convert.convert(folder, tmp / 'bag', packet_duration_ms=10.0)

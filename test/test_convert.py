@@ -11,7 +11,7 @@ import pytest
 
 from hrn_vo_ros.cli.main import main as hrn_vo
 from hrn_vo_ros.core.events import EventArray, EventChecksum
-from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.core.sequence import random_sequence
 from hrn_vo_ros.errors import DecodeError
 from hrn_vo_ros.io import bags, convert, ecd, eventpacket, npy, ros1bag
 
@@ -108,27 +108,10 @@ def test_packet_splitter_keeps_every_event(rng: np.random.Generator) -> None:
             assert max(sizes) == 64 and sum(s != 64 for s in sizes) <= 2 * crossings + 1
 
 
-def synthetic_sequence(rng: np.random.Generator, seconds: float, rate: float) -> Sequence:
-    """A seconds-long sequence with bursty event rates (a stand-in for the simulator)."""
-    n = int(seconds * rate)
-    t = np.sort(rng.integers(0, int(seconds * 1e9), n))
-    t = t - t % 1000 + 999 * (t % 7 == 0)  # some stamps on whole us, some not
-    t = np.sort(t)
-    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
-                                rng.integers(0, 2, n))
-    ti = np.arange(0, int(seconds * 1e9), 1_000_000, dtype=np.int64)
-    imu = ImuData(t=ti, acc=rng.normal(size=(ti.size, 3)), gyro=rng.normal(size=(ti.size, 3)))
-    tg = ti[::5]
-    gt = Trajectory(t=tg, pos=rng.normal(size=(tg.size, 3)),
-                    quat=np.tile([0.0, 0.0, 0.0, 1.0], (tg.size, 1)))
-    calib = CameraCalibration(width=240, height=180, fx=199.0, fy=198.0, cx=120.0, cy=90.0)
-    return Sequence(events=ev, calib=calib, imu=imu, groundtruth=gt)
-
-
 def test_ten_second_sequence_round_trips_bit_exactly(tmp_path: Path,
                                                      rng: np.random.Generator) -> None:
     """Acceptance: text -> bag -> decoded events, and ROS 1 bag -> ROS 2 bag, bit-exact."""
-    seq = synthetic_sequence(rng, 10.0, 60_000)
+    seq = random_sequence(rng, 10.0, 60_000, stamps='mixed')  # some stamps off whole us
     want = digest([seq.events])
     folder = ecd.write_sequence(tmp_path / 'seq', seq)
     assert hrn_vo(['convert', str(folder), str(tmp_path / 'from_text')]) == 0

@@ -79,3 +79,43 @@ class Sequence:
     calib: CameraCalibration
     imu: ImuData | None = None
     groundtruth: Trajectory | None = None
+
+
+def random_sequence(rng: np.random.Generator, seconds: float, rate: float, *,
+                    stamps: str = 'ns', imu_period_ns: int = 1_000_000,
+                    gt_every: int = 5) -> Sequence:
+    """A DAVIS240-sized sequence of random content, for I/O tests and benchmarks (not physics:
+    :mod:`hrn_vo_ros.core.simulator` renders a scene).
+
+    Events uniformly at random in time, position and polarity; IMU and ground truth random on a
+    regular clock (identity orientations).
+
+    Args:
+        rng: The random source.
+        seconds: Duration.
+        rate: Events per second.
+        stamps: ``'ns'`` (any nanosecond), ``'us'`` (whole microseconds, as the text layout
+            stores them) or ``'mixed'`` (most on whole microseconds, some 999 ns past).
+        imu_period_ns: IMU sample period.
+        gt_every: A ground-truth pose every this many IMU samples.
+
+    Raises:
+        ValueError: for an unknown ``stamps``.
+    """
+    n = int(seconds * rate)
+    t = np.sort(rng.integers(0, int(seconds * 1e9), n))
+    if stamps == 'us':
+        t = t // 1000 * 1000
+    elif stamps == 'mixed':
+        t = np.sort(t - t % 1000 + 999 * (t % 7 == 0))
+    elif stamps != 'ns':
+        raise ValueError(f"stamps must be 'ns', 'us' or 'mixed', not {stamps!r}")
+    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                rng.integers(0, 2, n))
+    ti = np.arange(0, int(seconds * 1e9), imu_period_ns, dtype=np.int64)
+    imu = ImuData(t=ti, acc=rng.normal(size=(ti.size, 3)), gyro=rng.normal(size=(ti.size, 3)))
+    tg = ti[::gt_every]
+    gt = Trajectory(t=tg, pos=rng.normal(size=(tg.size, 3)),
+                    quat=np.tile([0.0, 0.0, 0.0, 1.0], (tg.size, 1)))
+    calib = CameraCalibration(width=240, height=180, fx=199.0, fy=198.0, cx=120.0, cy=90.0)
+    return Sequence(events=ev, calib=calib, imu=imu, groundtruth=gt)
