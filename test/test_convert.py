@@ -12,7 +12,7 @@ import pytest
 from hrn_vo_ros.cli.main import main as hrn_vo
 from hrn_vo_ros.core.events import EventArray, EventChecksum
 from hrn_vo_ros.core.sequence import random_sequence
-from hrn_vo_ros.errors import DecodeError
+from hrn_vo_ros.errors import ConfigError, DecodeError
 from hrn_vo_ros.io import bags, convert, ecd, eventpacket, npy, ros1bag
 
 FIXTURES = Path(__file__).resolve().parent / 'fixtures'
@@ -106,6 +106,15 @@ def test_packet_splitter_keeps_every_event(rng: np.random.Generator) -> None:
             sizes = [len(p) for p in packets]
             crossings = int((t[-1] - t[0]) // 4_000_000_000) + 1  # 4 s grid lines cut too
             assert max(sizes) == 64 and sum(s != 64 for s in sizes) <= 2 * crossings + 1
+
+
+def test_random_sequence_stamps(rng: np.random.Generator) -> None:
+    us = random_sequence(rng, 0.1, 20_000, stamps='us').events.t
+    mixed = random_sequence(rng, 0.1, 20_000, stamps='mixed').events.t
+    assert np.all(us % 1000 == 0) and np.all(np.diff(us) >= 0)
+    assert 0 < np.mean(mixed % 1000 != 0) < 0.5 and np.all(np.diff(mixed) >= 0)
+    with pytest.raises(ConfigError, match='stamps'):
+        random_sequence(rng, 0.1, 1000, stamps='ms')
 
 
 def test_ten_second_sequence_round_trips_bit_exactly(tmp_path: Path,

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.errors import DatasetError
+from hrn_vo_ros.errors import ConfigError, DatasetError
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,7 +100,7 @@ def random_sequence(rng: np.random.Generator, seconds: float, rate: float, *,
         gt_every: A ground-truth pose every this many IMU samples.
 
     Raises:
-        ValueError: for an unknown ``stamps``.
+        ConfigError: for an unknown ``stamps``.
     """
     n = int(seconds * rate)
     t = np.sort(rng.integers(0, int(seconds * 1e9), n))
@@ -109,7 +109,7 @@ def random_sequence(rng: np.random.Generator, seconds: float, rate: float, *,
     elif stamps == 'mixed':
         t = np.sort(t - t % 1000 + 999 * (t % 7 == 0))
     elif stamps != 'ns':
-        raise ValueError(f"stamps must be 'ns', 'us' or 'mixed', not {stamps!r}")
+        raise ConfigError(f"stamps must be 'ns', 'us' or 'mixed', not {stamps!r}")
     ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
                                 rng.integers(0, 2, n))
     ti = np.arange(0, int(seconds * 1e9), imu_period_ns, dtype=np.int64)
