@@ -604,6 +604,7 @@ class _FastEngine:
         self._sw: Complex = np.zeros(0, np.complex128)
         self.state: dict[str, Complex] = {}
         self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
+        self._keep_drive = cfg.readout.source == 'drive'   # (only that readout needs them)
         self.inputs: dict[str, Complex] = {}   # the last cleanup inputs (marginals) a
         self.m: Spectrum = np.zeros((g.canvas_height, g.canvas_width), self._cdt)
         self.m0 = self.m
@@ -665,7 +666,8 @@ class _FastEngine:
             return np.asarray(self._clean_full((name,), a[None, :])[0], np.complex128)
         c = np.real(self.book_decode(name, a))
         bound = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
-        self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
+        if self._keep_drive:
+            self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
         p = cleanup_weights(c, self.cfg.cleanup, bound)
         return fhrr.phasor(self.book_encode(name, p))
 
@@ -681,7 +683,8 @@ class _FastEngine:
         p = np.empty_like(c)
         for i, name in enumerate(names):
             b = float(bound[i])
-            self.drive[name] = c[i, perm] / b if b > 0 else np.zeros(n)
+            if self._keep_drive:
+                self.drive[name] = c[i, perm] / b if b > 0 else np.zeros(n)
             p[i] = cleanup_weights(c[i], self.cfg.cleanup, b)
         return fhrr.phasor(sfft.fft(p, axis=1, workers=1))
 
@@ -764,9 +767,11 @@ class _FastEngine:
         lt = self.lp.forward_theta(mvh)                          # fft_θ(T ifft2(m̂ ⊙ v̂ ⊙ ĥ))
         np.conjugate(lt, out=lt)
         lt *= self._S_roll
-        a_r = lt.sum(axis=0, dtype=np.complex128)                # Σ_kρ S_w ⊙ l̂_w*
-        a_h = np.einsum('i,ij->j', vs.conj(), u).astype(np.complex128)
-        a_v = np.einsum('ij,j->i', u, hs.conj()).astype(np.complex128)
+        a_r = lt.sum(axis=0).astype(np.complex128)               # Σ_kρ S_w ⊙ l̂_w*
+        # (broadcast products and sums: einsum takes 3-10x longer on complex64 at this size,
+        # and BLAS gemv may go multi-threaded)
+        a_h = (u * vs.conj()[:, None]).sum(axis=0).astype(np.complex128)
+        a_v = (u * hs.conj()[None, :]).sum(axis=1).astype(np.complex128)
         self.inputs.update(h=a_h, v=a_v, r=a_r)
         if self._hv_rows:                  # one cleanup call for both (update() is not a hook
             hv = self._blend(np.stack((h, v)), self._clean_full(('h', 'v'),   # in this form)
