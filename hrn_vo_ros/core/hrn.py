@@ -739,11 +739,12 @@ class _FastEngine:
             u, w = fhrr.phasor(u), fhrr.phasor(w)
             hb, vb, rb = fhrr.phasor(h), fhrr.phasor(v), fhrr.phasor(r)
             zb = None if z is None else fhrr.phasor(z)
-        a_h = np.einsum('i,ij->j', vb.conj(), u)    # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
-        a_v = np.einsum('ij,j->i', u, hb.conj())    # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
+        # (broadcast products and sums, not einsum: see _iterate_direct)
+        a_h = (u * vb.conj()[:, None]).sum(axis=0)  # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
+        a_v = (u * hb.conj()[None, :]).sum(axis=1)  # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
         if z is not None and zb is not None:
-            a_r = np.einsum('i,ij->j', zb.conj(), w)
-            a_z = np.einsum('ij,j->i', w, rb.conj())
+            a_r = (w * zb.conj()[:, None]).sum(axis=0)
+            a_z = (w * rb.conj()[None, :]).sum(axis=1)
             st['z'] = self.update('z', z, a_z)
         else:
             a_r = w.sum(axis=0)
