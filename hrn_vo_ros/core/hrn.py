@@ -123,8 +123,8 @@ from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
-import scipy.fft as sfft
 
+from hrn_vo_ros.core import fft as hfft
 from hrn_vo_ros.core import fhrr
 from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.estimate import Estimate
@@ -578,7 +578,7 @@ class _FastEngine:
     def __init__(self, cfg: ResonatorConfig, g: Geometry) -> None:
         self.cfg = cfg
         self.g = g
-        self.lp = LogPolarTransform(g, workers=1)
+        self.lp = LogPolarTransform(g)
         self.books = _factor_codebooks(cfg, g)
         self.X = {k: b.matrix for k, b in self.books.items()}
         self.XH = {k: np.ascontiguousarray(x.conj().T) for k, x in self.X.items()}
@@ -618,7 +618,7 @@ class _FastEngine:
         """The frame's log-polar spectrum: ``S`` (2-D), or ``S_θ`` in the direct form."""
         if self._direct:
             lp = self.lp.lp_image(canvas).astype(np.float32)
-            S: Spectrum = np.asarray(sfft.fft(lp, axis=1, workers=1), self._cdt)
+            S: Spectrum = np.asarray(hfft.fft(lp, axis=1), self._cdt)
             rows = self.g.n_rho * (self.lp.w ** 2 if self.lp.weighted else np.ones(len(lp)))
             self._S_roll = S * rows.astype(np.float32)[:, None]
             return S
@@ -636,7 +636,7 @@ class _FastEngine:
             self.state['z'] = fhrr.random_phasor(g.n_rho, rng)
         if self.cfg.cleanup.init == 'identity':       # seed^0 = 1: zero shift, roll, zoom
             self.state = {k: np.ones_like(x) for k, x in self.state.items()}
-        self.m0 = sfft.fft2(canvas, workers=1).astype(self._cdt)   # m̂(0) = s(0) = Φ I(0)
+        self.m0 = hfft.fft2(canvas).astype(self._cdt)   # m̂(0) = s(0) = Φ I(0)
         self.m = self.m0.copy()
         self._mc = self.m.conj()
 
@@ -648,7 +648,7 @@ class _FastEngine:
     def book_decode(self, name: str, a: Complex) -> Complex:
         """``X† a`` for factor ``name``. Shapes: a (n,) → (K,)."""
         if self._full[name]:
-            out = sfft.ifft(a, workers=1)[self._perm_dec[name]]
+            out = hfft.ifft(a)[self._perm_dec[name]]
             out *= a.shape[0]
             return np.asarray(out, np.complex128)
         return np.asarray((self.XH[name] * a[None, :]).sum(axis=1), np.complex128)
@@ -656,7 +656,7 @@ class _FastEngine:
     def book_encode(self, name: str, p: Real | Complex) -> Complex:
         """``X p`` for factor ``name``. Shapes: p (K,) → (n,)."""
         if self._full[name]:
-            return np.asarray(sfft.fft(p[self._perm_enc[name]], workers=1, overwrite_x=True),
+            return np.asarray(hfft.fft(p[self._perm_enc[name]], overwrite_x=True),
                               np.complex128)
         return np.asarray((self.X[name] * p[None, :]).sum(axis=1), np.complex128)
 
@@ -677,7 +677,7 @@ class _FastEngine:
         similarities stay in FFT order (n Re ifft a) and X p is their FFT. Shapes: (k, n)."""
         n = a.shape[1]
         bound = self.col_norm[names[0]] * np.sqrt(np.einsum('ij,ij->i', a, a.conj()).real)
-        c = sfft.ifft(a, axis=1, workers=1).real
+        c = hfft.ifft(a, axis=1).real
         c *= n
         perm = self._perm_dec[names[0]]
         p = np.empty_like(c)
@@ -686,7 +686,7 @@ class _FastEngine:
             if self._keep_drive:
                 self.drive[name] = c[i, perm] / b if b > 0 else np.zeros(n)
             p[i] = cleanup_weights(c[i], self.cfg.cleanup, b)
-        return fhrr.phasor(sfft.fft(p, axis=1, workers=1))
+        return fhrr.phasor(hfft.fft(p, axis=1))
 
     def _blend(self, x: Complex, cleaned: Complex) -> Complex:
         """x̂ ← (1-γ) x̂ + γ C_X(·), in place of ``cleaned``."""
@@ -830,7 +830,7 @@ class _FastEngine:
             if self.has_z:
                 m = m * fhrr.power(b['z'].phases, point['z'])[:, None]
             m = self.lp.reverse(m)
-        return np.asarray(np.real(sfft.ifft2(m, workers=1)), np.float64)
+        return np.asarray(np.real(hfft.ifft2(m)), np.float64)
 
 
 class _DenseEngine:
@@ -1024,8 +1024,8 @@ class HRN:
         self._blur: Real | None = None
         if c.codebook.kernel_sigma > 0.0:
             sig = c.codebook.kernel_sigma
-            fy = sfft.fftfreq(self.geometry.canvas_height)[:, None]
-            fx = sfft.rfftfreq(self.geometry.canvas_width)[None, :]
+            fy = hfft.fftfreq(self.geometry.canvas_height)[:, None]
+            fx = hfft.rfftfreq(self.geometry.canvas_width)[None, :]
             self._blur = np.exp(-2.0 * math.pi ** 2 * sig ** 2 * (fx ** 2 + fy ** 2))
         self.reset()
 
@@ -1057,10 +1057,9 @@ class HRN:
         if self._blur is None:
             return self._canvas
         # G * I on the (toroidal) canvas, i.e. s = (Φ I) ⊙ ĝ for DFT codebooks
-        spec = sfft.rfft2(self._canvas, workers=1)
+        spec = hfft.rfft2(self._canvas)
         spec *= self._blur
-        return np.asarray(sfft.irfft2(spec, s=self._canvas.shape, workers=1, overwrite_x=True),
-                          np.float64)
+        return np.asarray(hfft.irfft2(spec, self._canvas.shape), np.float64)
 
     def readout_axis(self, name: str) -> Real:
         """Physical value (px, rad, log scale) of each readout entry of factor ``name``."""

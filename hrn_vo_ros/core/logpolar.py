@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 import scipy.fft as sfft
 import scipy.sparse as sp
 
+from hrn_vo_ros.core import fft as hfft
 from hrn_vo_ros.core.configbase import param, validate
 from hrn_vo_ros.errors import ConfigError
 
@@ -228,33 +229,33 @@ class LogPolarTransform:
         """
         lp = self.lp_image(canvas)
         self.last_lp_image = lp
-        return np.asarray(sfft.fft2(lp, workers=self.workers), np.complex128)
+        return np.asarray(hfft.fft2(lp, workers=self.workers), np.complex128)
 
     def weight_image(self, lp: NDArray[np.floating]) -> Complex:
         """``D_w Λ s`` from the log-polar image ``T · canvas`` (one FFT instead of two)."""
-        return np.asarray(sfft.fft2(lp * self.w[:, None], workers=self.workers), np.complex128)
+        return np.asarray(hfft.fft2(lp * self.w[:, None], workers=self.workers), np.complex128)
 
     def forward(self, x: Complex) -> Complex:
         """Λ x. Shapes: x (H_c, W_c) → (n_rho, n_theta)."""
-        img = sfft.ifft2(x, workers=self.workers).ravel()
-        out = sfft.fft2((self._Tc @ img).reshape(self.lp_shape), workers=self.workers,
-                         overwrite_x=True)
+        img = hfft.ifft2(x, workers=self.workers).ravel()
+        out = hfft.fft2((self._Tc @ img).reshape(self.lp_shape), workers=self.workers,
+                        overwrite_x=True)
         return np.asarray(out, np.complex128)
 
     def forward_weighted(self, x: Complex) -> Complex:
         """Λ_w x = fft2_LP(W T · ifft2_C(x)), W = diag(ring weights). Shapes: as forward."""
-        img = sfft.ifft2(x, workers=self.workers).ravel()
-        out = sfft.fft2((self._Twc @ img).reshape(self.lp_shape), workers=self.workers,
-                         overwrite_x=True)
+        img = hfft.ifft2(x, workers=self.workers).ravel()
+        out = hfft.fft2((self._Twc @ img).reshape(self.lp_shape), workers=self.workers,
+                        overwrite_x=True)
         return np.asarray(out, np.complex128)
 
     def weight(self, y: Complex) -> Complex:
         """D_w y = fft2(W · ifft2(y)): ring-weight a log-polar vector. Shapes: (n_rho, n_theta)."""
         if not self.weighted:
             return y
-        img = sfft.ifft2(y, workers=self.workers)
+        img = hfft.ifft2(y, workers=self.workers)
         img *= self.w[:, None]
-        return np.asarray(sfft.fft2(img, workers=self.workers, overwrite_x=True),
+        return np.asarray(hfft.fft2(img, workers=self.workers, overwrite_x=True),
                           np.complex128)
 
     def reverse_theta(self, y: Complex) -> Complex:
@@ -263,8 +264,8 @@ class LogPolarTransform:
         2-D one. ``y`` is overwritten (pass a temporary). complex64 in, complex64 out.
         Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
         tr = self._single[1] if y.dtype == np.complex64 else self._Trc
-        img = sfft.ifft(y, axis=1, workers=self.workers, overwrite_x=True).ravel()
-        out = sfft.fft2((tr @ img).reshape(self.cart_shape), workers=self.workers,
+        img = hfft.ifft(y, axis=1, workers=self.workers, overwrite_x=True).ravel()
+        out = hfft.fft2((tr @ img).reshape(self.cart_shape), workers=self.workers,
                         overwrite_x=True)
         return np.asarray(out, y.dtype)
 
@@ -273,16 +274,16 @@ class LogPolarTransform:
         against another θ-spectrum uses Parseval instead). ``x`` is overwritten (pass a
         scratch array). complex64 in, complex64 out. Shapes: as forward."""
         t = self._single[0] if x.dtype == np.complex64 else self._Tc
-        img = sfft.ifft2(x, workers=self.workers, overwrite_x=True).ravel()
-        out = sfft.fft((t @ img).reshape(self.lp_shape), axis=1, workers=self.workers,
+        img = hfft.ifft2(x, workers=self.workers, overwrite_x=True).ravel()
+        out = hfft.fft((t @ img).reshape(self.lp_shape), axis=1, workers=self.workers,
                        overwrite_x=True)
         return np.asarray(out, x.dtype)
 
     def reverse(self, y: Complex) -> Complex:
         """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
-        img = sfft.ifft2(y, workers=self.workers).ravel()
-        out = sfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers,
-                         overwrite_x=True)
+        img = hfft.ifft2(y, workers=self.workers).ravel()
+        out = hfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers,
+                        overwrite_x=True)
         return np.asarray(out, np.complex128)
 
 
