@@ -138,8 +138,8 @@ def run_baseline(case: Case, dataset: Path, out: Path, sphere: bool = False) -> 
     sphere correction only if ``sphere`` and the config enables it for the HRN."""
     t0 = time.perf_counter()
     dc = dataset_configs(ROOT / 'config' / case.config, dataset)   # as hrn-vo run
-    pcfg = dc.packetizer
-    bcfg = replace(config_like(dc.resonator), width=pcfg.width, height=pcfg.height)
+    pcfg = dc.packetizer                     # (dc.resonator already has the frame size)
+    bcfg = config_like(dc.resonator)
     bcfg = replace(bcfg, sphere=bcfg.sphere and sphere)
     packetizer = Packetizer(with_calibration(pcfg, ecd.read_calib(dataset)))
     width, height = pcfg.sensor_width, pcfg.sensor_height

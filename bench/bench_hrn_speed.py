@@ -3,8 +3,8 @@
 Prints: the median ms per HRN step of the fast path (DFT codebooks, 96x72 frames, h/v/r, the
 shapes_rotation config and its canvas; best of three runs, each printed), the dense reference
 path at full size with the same config (complex64 matrices) and their ratio, and the
-packetizing rate. Wall-clock and CPU
-(process) times are both shown: the machine is shared, and CPU time is what one core spends.
+packetizing rate. Wall-clock and CPU (process) times are both shown: the machine is shared,
+and CPU time is what one core spends.
 Targets: fast <= 1.5 ms, dense >= 30x slower, packetizing >= 20 M events/s.
 
     scripts/run.sh python bench/bench_hrn_speed.py [--dense-steps 8] [--steps 400]

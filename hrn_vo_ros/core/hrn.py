@@ -600,6 +600,8 @@ class _FastEngine:
         # the map's own scale; the factor states and cleanups stay double)
         self._cdt: type[np.complexfloating] = np.complex64 if self._direct else np.complex128
         self._S_roll: Spectrum = np.zeros(0, self._cdt)   # n_ρ w² ⊙ S_θ (direct form)
+        w2 = self.lp.w ** 2 if self.lp.weighted else np.ones(g.n_rho)
+        self._roll_rows = (g.n_rho * w2).astype(np.float32)[:, None]   # its per-ring factor
         self._sw_key: Complex | None = None
         self._sw: Complex = np.zeros(0, np.complex128)
         self.state: dict[str, Complex] = {}
@@ -619,8 +621,7 @@ class _FastEngine:
         if self._direct:
             lp = self.lp.lp_image(canvas).astype(np.float32)
             S: Spectrum = np.asarray(hfft.fft(lp, axis=1), self._cdt)
-            rows = self.g.n_rho * (self.lp.w ** 2 if self.lp.weighted else np.ones(len(lp)))
-            self._S_roll = S * rows.astype(np.float32)[:, None]
+            self._S_roll = S * self._roll_rows
             return S
         S = self.lp.encode_image_lp(canvas)
         if self.lp.weighted and self.lp.last_lp_image is not None:
@@ -774,9 +775,9 @@ class _FastEngine:
         a_h = (u * vs.conj()[:, None]).sum(axis=0).astype(np.complex128)
         a_v = (u * hs.conj()[None, :]).sum(axis=1).astype(np.complex128)
         self.inputs.update(h=a_h, v=a_v, r=a_r)
-        if self._hv_rows:                  # one cleanup call for both (update() is not a hook
-            hv = self._blend(np.stack((h, v)), self._clean_full(('h', 'v'),   # in this form)
-                                                                np.stack((a_h, a_v))))
+        if self._hv_rows:      # one cleanup for both (update() is no hook in the direct form)
+            cleaned = self._clean_full(('h', 'v'), np.stack((a_h, a_v)))
+            hv = self._blend(np.stack((h, v)), cleaned)
             st['h'], st['v'] = hv[0], hv[1]
         else:
             st['h'] = self.update('h', h, a_h)

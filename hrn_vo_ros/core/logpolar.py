@@ -31,6 +31,7 @@ Resampling matrices (scipy.sparse CSR, real, ≤ 4 bilinear weights per row):
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -215,7 +216,11 @@ class LogPolarTransform:
         self.w = ring_weights(g)
         wrow = np.repeat(self.w, g.n_theta)
         self._Twc = sp.diags(wrow).tocsr() @ self._Tc if self.weighted else self._Tc
-        self._single = (self._Tc.astype(np.complex64), self._Trc.astype(np.complex64))
+
+    @functools.cached_property
+    def _single(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """T and T' as complex64 (built on first use: only the fast engine's direct form)."""
+        return self._Tc.astype(np.complex64), self._Trc.astype(np.complex64)
 
     def lp_image(self, canvas: NDArray[np.floating]) -> NDArray[np.float64]:
         """The log-polar image ``T · canvas``. Shapes: (H_c, W_c) real → (n_rho, n_theta)."""
