@@ -9,9 +9,22 @@ import pytest
 
 from hrn_vo_ros.cli.main import main
 from hrn_vo_ros.core.events import EventChecksum
-from hrn_vo_ros.core.geometry import quat_to_matrix, rotation_angle, so3_exp
-from hrn_vo_ros.core.sequence import Sequence
-from hrn_vo_ros.core.simulator import describe_motion, simulate, SimulatorConfig
+from hrn_vo_ros.core.geometry import (
+    euler_ptr_to_matrix,
+    matrix_to_quat,
+    quat_to_matrix,
+    rot_z,
+    rotation_angle,
+    so3_exp,
+)
+from hrn_vo_ros.core.sequence import Sequence, Trajectory
+from hrn_vo_ros.core.simulator import (
+    describe_motion,
+    optical_axis_estimate,
+    PLANE_Z,
+    simulate,
+    SimulatorConfig,
+)
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import read_calib, read_groundtruth, read_imu, read_sensor_size
 
@@ -116,6 +129,22 @@ def test_translation_moves_and_changes_depth() -> None:
     info = describe_motion(seq)
     assert info['peak_m_s'] > 0.1
     assert info['events_per_s'] > 5e4
+
+
+def test_optical_axis_estimate_reads_position_pan_roll_and_depth() -> None:
+    # wall z = 0.8; poses: start, 5 cm right, 10 cm closer, 1 deg pan, 30 deg roll
+    pan = np.radians(1.0)
+    R = np.stack([np.eye(3), np.eye(3), np.eye(3), euler_ptr_to_matrix(pan, 0.0, 0.0),
+                  rot_z(np.radians(30.0))])
+    pos = np.array([[0, 0, 0], [0.05, 0, 0], [0, 0, 0.1], [0, 0, 0], [0, 0, 0]], float)
+    gt = Trajectory(np.arange(5, dtype=np.int64) * 10**8, pos, matrix_to_quat(R))
+    h, v, r, z = optical_axis_estimate(gt, PLANE_Z['translation'])
+    np.testing.assert_allclose(h[1], 0.05, atol=1e-12)            # translation is read as is
+    np.testing.assert_allclose(z[2], -np.log(0.7 / 0.8), atol=1e-12)   # closer: magnified
+    # a pan moves the axis point like a sideways translation of 0.8 tan(1 deg) = 1.4 cm
+    assert abs(h[3]) == pytest.approx(0.8 * np.tan(pan), rel=1e-9)
+    np.testing.assert_allclose(r, [0, 0, 0, 0, np.radians(30.0)], atol=1e-12)
+    np.testing.assert_allclose(v, 0.0, atol=1e-12)
 
 
 def test_bad_kind_and_duration() -> None:

@@ -6,6 +6,8 @@ Public API::
     KINDS = ('rotation', 'translation', 'arm')
     SimulatorConfig            # sensor, noise and rendering parameters (frozen dataclass)
     scene_for(kind, seed, seconds, config) -> Scene   # camera, texture and motion (demos)
+    PLANE_Z[kind]                                     # the textured plane z = PLANE_Z (world)
+    optical_axis_estimate(gt, plane_z) -> (h, v, r, z)   # ideal image registration (benchmarks)
 
 The returned :class:`~hrn_vo_ros.core.sequence.Sequence` holds the events (int64 ns, sorted),
 the calibration (with the sensor size), the IMU (1 kHz) and the ground truth (200 Hz).
@@ -66,6 +68,7 @@ from hrn_vo_ros.core.events import EventArray
 from hrn_vo_ros.core.geometry import (
     euler_ptr_to_matrix,
     matrix_to_quat,
+    matrix_to_swing_twist,
     quat_to_matrix,
     rot_z,
     so3_log,
@@ -78,6 +81,7 @@ F32 = NDArray[np.float32]
 Kind = Literal['rotation', 'translation', 'arm']
 KINDS: tuple[str, ...] = ('rotation', 'translation', 'arm')
 GRAVITY = 9.81
+PLANE_Z: dict[str, float] = {'rotation': 1.0, 'translation': 0.8, 'arm': 0.0}
 _LOG_EPS = 0.02
 
 
@@ -460,7 +464,7 @@ def scene_for(kind: str, seed: int, seconds: float,
     if kind in ('rotation', 'translation'):
         calib = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6,
                                   (-0.12 * dist, 0.03 * dist, 0.0, 0.0, 0.0))
-        depth = 1.0 if kind == 'rotation' else 0.8
+        depth = PLANE_Z[kind]
         footprint = depth / 199.0
         motion: Motion
         if kind == 'rotation':
@@ -477,7 +481,7 @@ def scene_for(kind: str, seed: int, seconds: float,
     texture = table_texture(rng, x_range=(-0.25, 1.15), y_range=(-0.75, 0.75), texel=0.0007,
                             blur_m=0.6 * 0.4 / f)
     # 640x480 is downsampled by 10 for the HRN: renders every 1 px (not 0.5) of motion suffice
-    return Scene(kind, calib, texture, 0.0, _ArmMotion(rng, seconds, cfg.speed_scale),
+    return Scene(kind, calib, texture, PLANE_Z['arm'], _ArmMotion(rng, seconds, cfg.speed_scale),
                  (0.0, 0.0, -GRAVITY), render_px_scale=2.0)
 
 
@@ -789,3 +793,35 @@ def describe_motion(seq: Sequence) -> dict[str, float]:
     out['events_per_s'] = len(ev) / dur if dur > 0 else float('nan')
     out['on_fraction'] = float(np.mean(ev.p)) if len(ev) else float('nan')
     return out
+
+
+def optical_axis_estimate(gt: Trajectory, plane_z: float) -> tuple[F64, F64, F64, F64]:
+    """What an ideal image-registration estimator reads: the plane point on the optical axis.
+
+    A frame registered against a planar map (shift, roll and zoom about the image centre)
+    tells where the optical axis meets the plane, how the camera turns about that axis and
+    how far the plane is, but not the camera position itself: a small pan or tilt moves the
+    image like a sideways translation. Fed through the evaluation protocol, this estimate gives
+    the error floor that no image-based estimator can beat (in ``translation`` the ±0.5°
+    pan/tilt wobble moves the image by up to ~0.7 frame pixels, ~0.7 cm on the wall).
+
+    Args:
+        gt: Ground-truth camera poses (camera-to-world), with at least one pose.
+        plane_z: The textured plane z = ``plane_z`` in world coordinates (:data:`PLANE_Z`).
+
+    Returns:
+        ``h, v``: the axis point on the plane in the first camera's x/y axes (metres, from the
+        first pose's axis point); ``r``: twist about the optical axis relative to the first
+        pose (rad, unwrapped); ``z``: log magnification ``-log(distance / first distance)``.
+        Each of shape (n,).
+    """
+    R = quat_to_matrix(gt.quat)
+    c = np.asarray(gt.pos, dtype=np.float64)
+    axis = R[:, :, 2]                                   # optical axis (camera z) in the world
+    az = np.where(np.abs(axis[:, 2]) < 1e-9, 1e-9, axis[:, 2])
+    dist = (plane_z - c[:, 2]) / az                     # along the unit axis
+    P = c + dist[:, None] * axis
+    rel = (P - P[:1]) @ R[0]                            # R0^T (P - P0), first camera axes
+    _, _, roll = matrix_to_swing_twist(np.swapaxes(R[:1], 1, 2) @ R)
+    z = -np.log(np.abs(dist) / abs(float(dist[0])))
+    return rel[:, 0], rel[:, 1], np.unwrap(roll), z
