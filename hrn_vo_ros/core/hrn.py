@@ -101,6 +101,10 @@ Choices beyond the paper (each a config switch; measured on simulator seeds 1-3)
   content-dependent 0.5-1° at pan/tilt of 15-20°; rotation tuning seeds 1-20: mean error
   0.414 -> 0.276°, lower on every seed.
 * ``readout.source = drive`` (off by default) and ``cleanup.whiten`` (off) are experiments.
+  Whitening (phase correlation inside the resonator) loses track on the simulated sequences:
+  on sparse binary frames every frequency gets weight 1, the noise-dominated high frequencies
+  (which the encoding kernel had damped) included (rotation tuning seed 1 after 1.04 s,
+  translation seeds 1-3 at 11-16 cm).
 
 Two paths with the same equations:
 
@@ -195,7 +199,8 @@ class CleanupConfig:
                       'first frame and the map it defines) or random (unit phasors, as the paper)',
                       choices=('identity', 'random'))
     whiten: bool = param(False, 'phasor-project each unbinding product before its cleanup, '
-                         'C_X(f(u)) (phase correlation: sharp peaks, few spurious attractors)')
+                         'C_X(f(u)) (phase correlation; an experiment that loses track on '
+                         'the simulated sequences, see the module docstring)')
     predict_velocity: float = param(0.0, 'constant-velocity prediction (0: off): before a '
                                     'frame without a gyro delta, bind the h/v/r states with '
                                     'this fraction of their velocity (readout change per '
