@@ -75,14 +75,18 @@ Choices beyond the paper (each a config switch; measured on simulator seeds 1-3)
   of the paper's faster map): a mistracked frame barely enters the map, and on the toroidal
   canvas a strong anchor aliases the first view when the camera is far from it (the arm failed
   with it).
-* A canvas larger than the frame (``codebook.canvas_width/height``; 96x96 for shapes_rotation
-  and the arm, 128x96 for shapes_translation, the frame centred on it): the map is toroidal
+* A canvas larger than the frame (``codebook.canvas_width/height``; 96x96 for the arm, 128x96
+  for shapes_rotation and shapes_translation, the frame centred on it): the map is toroidal
   over the canvas, so with a frame-sized canvas a camera that moves more than half the frame
   (the arm: ~30 px along 48 rows) or tilts and rolls far (a rotated 96x72 view) sees the map
   overlap itself. The larger canvas removed a velocity-correlated bias of the arm's position
   (0.46 -> 0.19 cm on sim seed 1) and lowered the errors of all three kinds on the tuning
-  seeds; the fast step costs ~10 % more. Translation moves ~50 px sideways: 128 columns
-  lowered its position error on all six tuning seeds (mean 0.50 -> 0.48 cm).
+  seeds; the fast step costs ~10 % more. 128 columns instead of 96: a pan of 20° moves the
+  rotation view by 28 px, and on 96 columns the new content wrapped onto the far side of the
+  anchored first view (held-out rotation seed 174 lost track at 18° of pan, right when map
+  learning began; rotation tuning seeds 1-20: 0.276 -> 0.263°, with the IMU 0.255 ->
+  0.245°); translation moves ~50 px sideways (tuning seeds 1-6: 0.50 -> 0.48 cm, lower on
+  all six). Each costs ~10 % more time per step.
 * ``codebook.kernel_sigma`` (0.7 px for the 96x72 configs, 0 for the arm): each event pixel is
   encoded as a Gaussian blob, s = Φ (G ∗ I) = (Φ I) ⊙ ĝ with DFT codebooks (kernel shaping of
   the FPE). Sparse binary frames give spiky correlations; the smoother peaks lowered the
