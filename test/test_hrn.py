@@ -9,6 +9,7 @@ import pytest
 from hrn_vo_ros.core import fhrr
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn import (
+    blend_state,
     cleanup_weights,
     CleanupConfig,
     HRN,
@@ -215,6 +216,32 @@ def test_empty_frames_repeat_the_pose_without_iterating() -> None:
     e1 = hrn.step(frame, 6)
     e2 = hrn.step(np.zeros((72, 96), np.uint8), 7)
     assert e1.valid and not e2.valid and (e2.h, e2.r, e2.iteration) == (e1.h, e1.r, 1)
+
+
+@pytest.mark.parametrize('path', ['fast', 'dense'])
+def test_a_blank_cleanup_input_keeps_the_states(path: str) -> None:
+    """A zero input (nothing to unbind) must not shrink the states: zero h and v are a fixed
+    point of the resonator, so a shrinking state froze the network for good."""
+    over = {'path': path} if path == 'fast' else {
+        'path': 'dense', 'width': 24, 'height': 18, 'logpolar': {'n_theta': 24, 'n_rho': 18}}
+    hrn = make(over)
+    rng = np.random.default_rng(0)
+    w, h = hrn.cfg.width, hrn.cfg.height
+    hrn.step(event_frame(random_scene(rng), (0, 0, 0, 0), rng, width=w, height=h), 0)
+    eng = hrn._engine
+    before = {k: x.copy() for k, x in eng.state.items()}
+    S = eng.encode(np.zeros((hrn.geometry.canvas_height, hrn.geometry.canvas_width)))
+    for _ in range(3):
+        eng.iterate(S)
+    for k, x in eng.state.items():
+        np.testing.assert_allclose(x, before[k], atol=1e-12, err_msg=k)
+    # and the update still moves a state when the cleanup carries something
+    x = np.exp(1j * np.linspace(0, 1, 8))
+    cleaned = np.exp(-1j * np.linspace(0, 1, 8))
+    np.testing.assert_allclose(blend_state(x, cleaned.copy(), 0.9), 0.1 * x + 0.9 * cleaned)
+    two = np.stack([cleaned, np.zeros(8, complex)])
+    np.testing.assert_allclose(blend_state(np.stack([x, x]), two, 0.9),
+                               np.stack([0.1 * x + 0.9 * cleaned, x]))
 
 
 def test_noise_frames_above_max_fill_are_skipped() -> None:

@@ -74,6 +74,17 @@ def test_identity_at_the_start_and_non_rigid_away_from_it() -> None:
     assert sw.warp(inner, h, v, 0.2).sum() == pytest.approx(inner.sum())   # splat keeps mass
 
 
+def test_an_implausible_pose_passes_the_frame_unwarped() -> None:
+    """A lost track reads out thousands of pixels; warping by it would send every event off the
+    frame, and the frames of the next pose (the same) too: the frame must pass unchanged."""
+    sw = SphereWarp(W, H, F)
+    img = (np.random.default_rng(1).random((H, W)) < 0.1).astype(np.uint8)
+    for h, v, r in ((-2255.0, 1489.0, 9.4), (0.0, 1.6 * F, 0.0), (np.nan, 0.0, 0.0),
+                    (0.0, 0.0, np.inf)):
+        np.testing.assert_array_equal(sw.warp(img, h, v, r), img)
+    assert not np.array_equal(sw.warp(img, 0.0, 1.4 * F, 0.0), img)   # 80°: still warped
+
+
 def test_needs_a_focal_length() -> None:
     with pytest.raises(ConfigError, match='focal_px'):
         SphereWarp(W, H, 0.0)

@@ -129,7 +129,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import math
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -153,6 +153,7 @@ from hrn_vo_ros.errors import ConfigError, TrackingError
 Complex = NDArray[np.complex128]
 Real = NDArray[np.float64]
 Spectrum = NDArray[np.complexfloating[Any, Any]]   # complex64 or complex128 (the fast engine)
+_Arr = TypeVar('_Arr', bound=Spectrum)
 
 NONLINEARITIES = ('identity', 'relu', 'relu_k', 'exp')
 
@@ -382,6 +383,24 @@ def state_gamma(cfg: ResonatorConfig) -> float:
     if cfg.imu.enabled and cfg.imu.gamma > 0.0:
         return cfg.imu.gamma
     return cfg.cleanup.gamma
+
+
+def blend_state(x: Spectrum, cleaned: _Arr, gamma: float) -> _Arr:
+    """The state update x̂ ← (1-γ) x̂ + γ C_X(·), in place of ``cleaned``; rows: (n,) or (k, n).
+
+    A blank cleanup (all zero: its input carried nothing, e.g. an empty warped frame) leaves the
+    state as it was instead of shrinking it by (1-γ): two blank iterations took a state to 1 %
+    and a zero h and v are a fixed point of the resonator (each factor's input is unbound with
+    the other's state), so one blank stretch used to freeze the network for good.
+    """
+    rows = cleaned if cleaned.ndim == 2 else cleaned[None, :]
+    # index 0 is Σp (> 0) for cleanups of complete DFT books, so the full test rarely runs
+    blank = [i for i in range(rows.shape[0]) if rows[i, 0] == 0 and not rows[i].any()]
+    np.multiply(cleaned, gamma, out=cleaned)
+    np.add(cleaned, (1 - gamma) * x, out=cleaned)
+    for i in blank:
+        rows[i] = x[i] if cleaned.ndim == 2 else x
+    return cleaned
 
 
 # --------------------------------------------------------------------------------------------
@@ -701,11 +720,8 @@ class _FastEngine:
         return fhrr.phasor(hfft.fft(p, axis=1))
 
     def _blend(self, x: Complex, cleaned: Complex) -> Complex:
-        """x̂ ← (1-γ) x̂ + γ C_X(·), in place of ``cleaned``."""
-        gam = state_gamma(self.cfg)
-        cleaned *= gam
-        cleaned += (1 - gam) * x
-        return cleaned
+        """x̂ ← (1-γ) x̂ + γ C_X(·), in place of ``cleaned`` (:func:`blend_state`)."""
+        return blend_state(x, cleaned, state_gamma(self.cfg))
 
     def send(self, name: str, x: Complex) -> Complex:
         """Hook: the population ``name`` (S, m, p, l) sends ``x`` (identity here; the spiking
@@ -941,8 +957,8 @@ class _DenseEngine:
         p = self.lam_r @ q                                  # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
         mc = self.m.conj()
         wh = fhrr.phasor if self.cfg.cleanup.whiten else (lambda x: x)
-        h_new = (1 - gam) * h + gam * self._clean('h', wh(p * v.conj() * mc))
-        v_new = (1 - gam) * v + gam * self._clean('v', wh(p * h.conj() * mc))
+        h_new = blend_state(h, self._clean('h', wh(p * v.conj() * mc)), gam)
+        v_new = blend_state(v, self._clean('v', wh(p * h.conj() * mc)), gam)
         lv = self.lam @ (self.m * h * v)                    # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)
         sw = S
         if self.dw is not None:                             # ring-weighted D_w S ⊙ (D_w l̂)*
@@ -952,9 +968,9 @@ class _DenseEngine:
             sw = self._sw
         w = sw * lv.conj()
         if z is not None:
-            st['z'] = (1 - gam) * z + gam * self._clean('z', wh(w * r.conj()))
+            st['z'] = blend_state(z, self._clean('z', wh(w * r.conj())), gam)
             w = w * z.conj()
-        st['r'] = (1 - gam) * r + gam * self._clean('r', wh(w))
+        st['r'] = blend_state(r, self._clean('r', wh(w)), gam)
         st['h'], st['v'] = h_new, v_new
 
     def similarities(self) -> dict[str, Real]:
@@ -1162,8 +1178,9 @@ class HRN:
                 the prediction step (paper Eq. 10) when given.
 
         Returns:
-            The pose readout; an empty frame, or one with more than ``max_fill`` of its pixels
-            on (noise), repeats the previous pose with ``valid=False``.
+            The pose readout; an empty frame, one with more than ``max_fill`` of its pixels
+            on (noise), or one the sphere correction warps entirely off the frame repeats the
+            previous pose with ``valid=False``.
 
         Shapes:
             image: (height, width); gyro_delta: (3,).
@@ -1184,6 +1201,8 @@ class HRN:
             return self._repeat(t_ns)
         if self._sphere is not None and self._started:   # the last pose's non-rigid part
             img = self._sphere.warp(img, self._out['h'], self._out['v'], self._out['r'])
+            if not img.any():             # every event warped off the frame: nothing to use
+                return self._repeat(t_ns)
         canvas = self._place(img)
         eng = self._engine
         first = not self._started

@@ -39,6 +39,8 @@ from hrn_vo_ros.errors import ConfigError
 
 F64 = NDArray[np.float64]
 
+MAX_SWING_RAD = math.pi / 2     # beyond it SphereWarp.warp passes frames through unwarped
+
 
 class SphereWarp:
     """Per-frame warp of equidistant-rectified event frames (module docstring).
@@ -123,9 +125,16 @@ class SphereWarp:
     def warp(self, image: NDArray[np.generic], h: float, v: float, r: float) -> F64:
         """The frame with every on-pixel moved (bilinear splat, weight = pixel value).
 
+        A pose whose optical axis is more than :data:`MAX_SWING_RAD` (90°) from the chart's
+        centre, or not finite, is no pose the correction can model (a lost track reads out
+        thousands of pixels): the frame is returned unwarped, so that it still reaches the
+        resonator instead of being warped off the frame.
+
         Shapes:
             image: (height, width); returns (height, width) float64.
         """
+        if not (math.hypot(h, v) <= MAX_SWING_RAD * self.f and math.isfinite(r)):
+            return np.asarray(image, dtype=np.float64)
         flat = np.flatnonzero(np.asarray(image) != 0)     # (a bool mask: 4x faster than on floats)
         vals = np.take(np.ravel(image), flat).astype(np.float64)
         # splat on a frame padded by one pixel (no per-corner bounds checks), then crop; a
