@@ -1055,6 +1055,8 @@ class HRN:
             fy = hfft.fftfreq(self.geometry.canvas_height)[:, None]
             fx = hfft.rfftfreq(self.geometry.canvas_width)[None, :]
             self._blur = np.exp(-2.0 * math.pi ** 2 * sig ** 2 * (fx ** 2 + fy ** 2))
+        self._blur32 = (self._blur.astype(np.float32) if self._blur is not None
+                        and getattr(self._engine, '_cdt', None) is np.complex64 else None)
         self.reset()
 
     def _make_engine(self, rng: np.random.Generator,
@@ -1085,6 +1087,10 @@ class HRN:
         if self._blur is None:
             return self._canvas
         # G * I on the (toroidal) canvas, i.e. s = (Φ I) ⊙ ĝ for DFT codebooks
+        if self._blur32 is not None:        # single precision where the engine rounds to it
+            spec = hfft.rfft2(self._canvas.astype(np.float32))
+            spec *= self._blur32
+            return np.asarray(hfft.irfft2(spec, self._canvas.shape))
         spec = hfft.rfft2(self._canvas)
         spec *= self._blur
         return np.asarray(hfft.irfft2(spec, self._canvas.shape), np.float64)
