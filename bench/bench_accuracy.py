@@ -22,9 +22,9 @@ the same run.
 
 The floor is what the protocol charges an estimator that reads every frame perfectly: it maps
 image motion to camera position, and a pan or tilt moves the image like a sideways
-translation. In ``translation`` the ±0.5° hand wobble alone costs 0.35-0.42 cm of the
-position error (held-out seeds 156-161), so the HRN and the baseline (0.47-0.64 cm) differ in
-what is left: the depth and their own registration noise.
+translation. In ``translation`` the ±0.5° hand wobble alone costs 0.35-0.45 cm of the
+position error (held-out seeds 156-161 and 168-173), so the HRN and the baseline (0.44-0.72 cm)
+differ in what is left: the depth and their own registration noise.
 
 ``--roll-zero S`` evaluates with the roll zeroed on the first S seconds instead of the
 protocol's 0.1 s (with ``--reuse hrn baseline baseline_sphere`` it only re-evaluates): how much

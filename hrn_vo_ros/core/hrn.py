@@ -152,6 +152,7 @@ from hrn_vo_ros.errors import ConfigError, TrackingError
 
 Complex = NDArray[np.complex128]
 Real = NDArray[np.float64]
+Floats = NDArray[np.floating[Any]]   # the placed canvas: float32 in the fast direct form
 Spectrum = NDArray[np.complexfloating[Any, Any]]   # complex64 or complex128 (the fast engine)
 _Arr = TypeVar('_Arr', bound=Spectrum)
 
@@ -542,8 +543,8 @@ class _Engine(Protocol):
     books: dict[str, FactorCodebook]
     state: dict[str, Any]
 
-    def encode(self, canvas: Real) -> Any: ...
-    def start(self, canvas: Real, rng: np.random.Generator) -> None: ...
+    def encode(self, canvas: Floats) -> Any: ...
+    def start(self, canvas: Floats, rng: np.random.Generator) -> None: ...
     def iterate(self, S: Any) -> None: ...
     def similarities(self) -> dict[str, Real]: ...
     def shift(self, name: str, delta: float) -> None: ...
@@ -646,7 +647,7 @@ class _FastEngine:
         self._m0_mu2 = 0.0
         self._m0_scaled = self.m0
 
-    def encode(self, canvas: Real) -> Spectrum:
+    def encode(self, canvas: Floats) -> Spectrum:
         """The frame's log-polar spectrum: ``S`` (2-D), or ``S_θ`` in the direct form."""
         if self._direct:
             lp = self.lp.lp_image(canvas).astype(np.float32)
@@ -658,7 +659,7 @@ class _FastEngine:
             self._sw_key, self._sw = S, self.lp.weight_image(self.lp.last_lp_image)
         return S
 
-    def start(self, canvas: Real, rng: np.random.Generator) -> None:
+    def start(self, canvas: Floats, rng: np.random.Generator) -> None:
         g = self.g
         self.state = {'h': fhrr.random_phasor(g.canvas_width, rng),
                       'v': fhrr.random_phasor(g.canvas_height, rng),
@@ -913,12 +914,12 @@ class _DenseEngine:
         self.m = np.zeros(self.phi_c.shape[0], dtype)
         self.m0 = self.m
 
-    def encode(self, canvas: Real) -> NDArray[np.complexfloating]:
+    def encode(self, canvas: Floats) -> NDArray[np.complexfloating]:
         s = self.phi_c @ canvas.ravel().astype(self.dtype)        # s = Φ I (Eq. 3)
         S: NDArray[np.complexfloating] = self.lam @ s               # S = Λ s
         return S
 
-    def start(self, canvas: Real, rng: np.random.Generator) -> None:
+    def start(self, canvas: Floats, rng: np.random.Generator) -> None:
         g = self.g
         hc, wc, nr, nt = g.canvas_height, g.canvas_width, g.n_rho, g.n_theta
         if self.periodic:
@@ -1080,7 +1081,7 @@ class HRN:
 
     # -- helpers ---------------------------------------------------------------------------
 
-    def _place(self, image: NDArray[Any]) -> Real:
+    def _place(self, image: NDArray[Any]) -> Floats:
         g = self.geometry
         ox, oy = g.offset
         self._canvas[oy:oy + g.height, ox:ox + g.width] = image

@@ -39,6 +39,7 @@ from hrn_vo_ros.core.hrn import (
     _Engine,
     _FastEngine,
     cleanup_weights,
+    Floats,
     HRN,
     ResonatorConfig,
     state_gamma,
@@ -94,11 +95,11 @@ class SpikingEngine(_FastEngine):
 
     # -- hooks of the float engine ---------------------------------------------------------
 
-    def encode(self, canvas: Real) -> Complex:
+    def encode(self, canvas: Floats) -> Complex:
         self.pixels = int(np.count_nonzero(canvas))
         return np.asarray(super().encode(canvas), np.complex128)   # general form: double
 
-    def start(self, canvas: Real, rng: np.random.Generator) -> None:
+    def start(self, canvas: Floats, rng: np.random.Generator) -> None:
         super().start(canvas, rng)
         for k, x in self.state.items():
             self._set_state(k, encode(x, self.scfg, fire_threshold=0.0))
