@@ -694,8 +694,14 @@ class _FastEngine:
 
     def _clean(self, name: str, a: Complex) -> Complex:
         # C_X(u) with u's weighted marginal a along the factor's axis: f(X p(Re X† a)).
-        if self._full[name]:
-            return np.asarray(self._clean_full((name,), a[None, :])[0], np.complex128)
+        if self._full[name]:                  # _clean_full of one row, without the batching
+            n = a.shape[0]
+            b = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
+            c = hfft.ifft(a).real
+            c *= n
+            if self._keep_drive:
+                self.drive[name] = c[self._perm_dec[name]] / b if b > 0 else np.zeros(n)
+            return fhrr.phasor(hfft.fft(cleanup_weights(c, self.cfg.cleanup, b)))
         c = np.real(self.book_decode(name, a))
         bound = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
         if self._keep_drive:
