@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.core import fhrr
+from hrn_vo_ros.core.backends import BackendConfig, make_backend
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn import (
     blend_state,
@@ -18,6 +19,7 @@ from hrn_vo_ros.core.hrn import (
     ResonatorConfig,
     state_gamma,
 )
+from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, TrackingError
 
 FOCAL = 80.0
@@ -218,13 +220,17 @@ def test_empty_frames_repeat_the_pose_without_iterating() -> None:
     assert e1.valid and not e2.valid and (e2.h, e2.r, e2.iteration) == (e1.h, e1.r, 1)
 
 
-@pytest.mark.parametrize('path', ['fast', 'dense'])
+@pytest.mark.parametrize('path', ['fast', 'dense', 'spiking'])
 def test_a_blank_cleanup_input_keeps_the_states(path: str) -> None:
     """A zero input (nothing to unbind) must not shrink the states: zero h and v are a fixed
     point of the resonator, so a shrinking state froze the network for good."""
-    over = {'path': path} if path == 'fast' else {
+    over = {'path': 'fast'} if path != 'dense' else {
         'path': 'dense', 'width': 24, 'height': 18, 'logpolar': {'n_theta': 24, 'n_rho': 18}}
-    hrn = make(over)
+    if path == 'spiking':
+        hrn = make_backend(from_dict(ResonatorConfig, over), rng=np.random.default_rng(1),
+                           backend=BackendConfig('spiking', SpikingConfig()))
+    else:
+        hrn = make(over)
     rng = np.random.default_rng(0)
     w, h = hrn.cfg.width, hrn.cfg.height
     hrn.step(event_frame(random_scene(rng), (0, 0, 0, 0), rng, width=w, height=h), 0)

@@ -110,6 +110,8 @@ class SpikingEngine(_FastEngine):
         return sp.decode()
 
     def update(self, name: str, x: Complex, a: Complex) -> Complex:
+        if not a.any():   # no input spikes: no update, as the float engines (hrn.blend_state)
+            return x
         cl = self.cleanups[name]
         sp, _ = cl.step(a, self.spikes.get(name))
         self.spikes[name] = sp
