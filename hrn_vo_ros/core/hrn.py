@@ -694,14 +694,10 @@ class _FastEngine:
 
     def _clean(self, name: str, a: Complex) -> Complex:
         # C_X(u) with u's weighted marginal a along the factor's axis: f(X p(Re X† a)).
-        if self._full[name]:                  # _clean_full of one row, without the batching
-            n = a.shape[0]
-            b = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
+        if self._full[name]:     # as _clean_full, 1-D (the 2-D form's bookkeeping costs more)
             c = hfft.ifft(a).real
-            c *= n
-            if self._keep_drive:
-                self.drive[name] = c[self._perm_dec[name]] / b if b > 0 else np.zeros(n)
-            return fhrr.phasor(hfft.fft(cleanup_weights(c, self.cfg.cleanup, b)))
+            c *= a.shape[0]
+            return fhrr.phasor(hfft.fft(self._full_weights(name, c, a)))
         c = np.real(self.book_decode(name, a))
         bound = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
         if self._keep_drive:
@@ -713,18 +709,20 @@ class _FastEngine:
         """``_clean`` of factors with complete DFT codebooks of one length, a row each (one FFT
         pair for all). p acts entrywise, so the entry order cancels between X† and X: the
         similarities stay in FFT order (n Re ifft a) and X p is their FFT. Shapes: (k, n)."""
-        n = a.shape[1]
-        bound = self.col_norm[names[0]] * np.sqrt(np.einsum('ij,ij->i', a, a.conj()).real)
         c = hfft.ifft(a, axis=1).real
-        c *= n
-        perm = self._perm_dec[names[0]]
+        c *= a.shape[1]
         p = np.empty_like(c)
         for i, name in enumerate(names):
-            b = float(bound[i])
-            if self._keep_drive:
-                self.drive[name] = c[i, perm] / b if b > 0 else np.zeros(n)
-            p[i] = cleanup_weights(c[i], self.cfg.cleanup, b)
+            p[i] = self._full_weights(name, c[i], a[i])
         return fhrr.phasor(hfft.fft(p, axis=1))
+
+    def _full_weights(self, name: str, c: Real, a: Complex) -> Real:
+        """p of the similarities ``c`` (FFT order, ``n Re ifft a``) of a complete DFT codebook,
+        from its cleanup input ``a`` (the bound ``|x_j| |a|``; the drive if kept)."""
+        b = self.col_norm[name] * math.sqrt(float(np.vdot(a, a).real))
+        if self._keep_drive:
+            self.drive[name] = c[self._perm_dec[name]] / b if b > 0 else np.zeros(c.shape[0])
+        return cleanup_weights(c, self.cfg.cleanup, b)
 
     def _blend(self, x: Complex, cleaned: Complex) -> Complex:
         """x̂ ← (1-γ) x̂ + γ C_X(·), in place of ``cleaned`` (:func:`blend_state`)."""
