@@ -6,13 +6,13 @@ For each kind (rotation, rotation with IMU, translation, arm) and each held-out 
 1. simulates a sequence (``hrn-vo simulate`` equivalent, cached in ``--work``/seq),
 2. runs ``hrn-vo run DATASET --config config/<kind>.yaml --out est.csv [--imu]`` (subprocess,
    the working tree's code) and times it,
-3. runs the classical baseline (:mod:`hrn_vo_ros.core.baseline`) on the same event frames (same
+3. runs the classical baseline (`core.evaluation.baseline`) on the same event frames (same
    packetizer settings from the same YAML file) and writes ``est_baseline.csv``; where the
    config turns the HRN's sphere correction on (shapes_rotation), a second time with it
    (``baseline_sphere``), and the HRN is compared with the better of the two per seed,
 4. for translation and the arm, writes the estimate an ideal image registration would give
    (``floor``: where the optical axis meets the plane, the twist about it and the log
-   distance, from the ground truth; :func:`hrn_vo_ros.core.simulator.optical_axis_estimate`),
+   distance, from the ground truth; :func:`hrn_vo_ros.core.sim.simulator.optical_axis_estimate`),
 5. evaluates all of them with ``hrn-vo evaluate ... --json`` (subprocess, the paper's
    protocol),
 
@@ -63,10 +63,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from hrn_vo_ros.core.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
-from hrn_vo_ros.core.evaluation import EstimateSeries, ROTATION_CONVENTIONS  # noqa: E402
-from hrn_vo_ros.core.frames import Packetizer, with_calibration  # noqa: E402
-from hrn_vo_ros.core.simulator import (  # noqa: E402
+from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, ROTATION_CONVENTIONS  # noqa: E402
+from hrn_vo_ros.core.events.frames import Packetizer, with_calibration  # noqa: E402
+from hrn_vo_ros.core.sim.simulator import (  # noqa: E402
     optical_axis_estimate,
     PLANE_Z,
     simulate,

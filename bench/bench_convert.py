@@ -29,8 +29,8 @@ import zipfile
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
-from hrn_vo_ros.core.events import EventChecksum
-from hrn_vo_ros.core.sequence import random_sequence
+from hrn_vo_ros.core.events.arrays import EventChecksum
+from hrn_vo_ros.core.events.sequence import random_sequence
 from hrn_vo_ros.io import bags, convert, ecd, eventpacket, ros1bag
 
 
@@ -52,7 +52,7 @@ def main() -> None:
     ap.add_argument('--repeats', type=int, default=3)
     args = ap.parse_args()
     if args.simulate:
-        from hrn_vo_ros.core.simulator import simulate
+        from hrn_vo_ros.core.sim.simulator import simulate
         t0 = time.perf_counter()
         seq = simulate('rotation', args.seconds, seed=0)
         print(f'simulated {args.seconds:g} s rotation in {time.perf_counter() - t0:.1f} s')

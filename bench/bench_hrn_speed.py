@@ -26,10 +26,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
-from hrn_vo_ros.core.events import EventArray  # noqa: E402
-from hrn_vo_ros.core.frames import Packetizer, PacketizerConfig, with_calibration  # noqa: E402
-from hrn_vo_ros.core.hrn import HRN, needs_focal  # noqa: E402
-from hrn_vo_ros.core.sequence import CameraCalibration  # noqa: E402
+from hrn_vo_ros.core.events.arrays import EventArray  # noqa: E402
+from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.sequence import CameraCalibration  # noqa: E402
+from hrn_vo_ros.core.hrn.network import HRN, needs_focal  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -33,12 +33,12 @@ from nav_msgs.msg import Odometry  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
-from hrn_vo_ros.cli import graph as G  # noqa: E402,N812
-from hrn_vo_ros.core.frames import frames_from_events  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
 from hrn_vo_ros.io import bags  # noqa: E402
 from hrn_vo_ros.io.convert import convert  # noqa: E402
 from hrn_vo_ros.io.ecd import read_events, read_sensor_size, write_sequence  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
+from hrn_vo_ros.nodes import graph as G  # noqa: E402,N812
 from hrn_vo_ros.nodes.common import qos  # noqa: E402
 
 CONFIG = ROOT / 'config' / 'shapes_rotation.yaml'
@@ -48,7 +48,7 @@ def prepare(work: Path, seconds: float, seed: int) -> tuple[Path, Path]:
     """The simulated sequence and its bag (re-used when present)."""
     seq, bag = work / 'sequence', work / 'bag'
     if not seq.exists():
-        from hrn_vo_ros.core.simulator import simulate
+        from hrn_vo_ros.core.sim.simulator import simulate
         t0 = time.perf_counter()
         write_sequence(seq, simulate('rotation', seconds, seed=seed))
         print(f'simulated {seconds:g} s in {time.perf_counter() - t0:.0f} s -> {seq}')

@@ -43,13 +43,13 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hrn_vo_ros.cli.run import parse_overrides  # noqa: E402
-from hrn_vo_ros.core.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.configbase import from_dict  # noqa: E402
-from hrn_vo_ros.core.evaluation import EstimateSeries, evaluate  # noqa: E402
-from hrn_vo_ros.core.frames import frames_from_events, PacketizerConfig, with_calibration  # noqa: E402
-from hrn_vo_ros.core.hrn import needs_focal, ResonatorConfig  # noqa: E402
-from hrn_vo_ros.core.sequence import Trajectory  # noqa: E402
-from hrn_vo_ros.core.simulator import simulate  # noqa: E402
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events, PacketizerConfig, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.sequence import Trajectory  # noqa: E402
+from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
+from hrn_vo_ros.core.hrn.network import needs_focal, ResonatorConfig  # noqa: E402
+from hrn_vo_ros.core.sim.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
 from hrn_vo_ros.errors import DatasetError  # noqa: E402

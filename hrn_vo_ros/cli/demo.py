@@ -60,7 +60,7 @@ def config_dir() -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; prints the errors and where the files are."""
-    from hrn_vo_ros.cli.graph import run_graph
+    from hrn_vo_ros.nodes.graph import run_graph
 
     out: Path = args.out
     if any((out / d).exists() for d in ('sequence', 'input_bag', 'graph_bag')):
@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
 def simulate(args: argparse.Namespace, folder: Path) -> Path:
     """Simulate ``args.kind`` and write it in the Event Camera Dataset layout."""
     from hrn_vo_ros.cli.progress import Progress
-    from hrn_vo_ros.core.simulator import simulate as sim
+    from hrn_vo_ros.core.sim.simulator import simulate as sim
     from hrn_vo_ros.io.ecd import write_sequence
 
     with Progress(args.seconds * 1000, f'[demo] simulating {args.kind} (seed {args.seed}, '
@@ -115,10 +115,10 @@ def convert(dataset: Path, dst: Path) -> Path:
 
 def write_est_csv(bag: Path, dst: Path) -> Path:
     """The recorded raw readouts as an estimate CSV (``hrn-vo run`` columns)."""
-    from hrn_vo_ros.cli.graph import READOUT_TOPIC
-    from hrn_vo_ros.core.evaluation import EstimateSeries
+    from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
     from hrn_vo_ros.io.estimates import write_estimates
     from hrn_vo_ros.io.recording import read_readouts
+    from hrn_vo_ros.nodes.graph import READOUT_TOPIC
 
     t, vals = read_readouts(bag, READOUT_TOPIC)
     if len(t) == 0:
@@ -130,7 +130,7 @@ def write_est_csv(bag: Path, dst: Path) -> Path:
 def evaluate(dataset: Path, est_csv: Path, kind: str, out: Path) -> str:
     """Evaluate, write the table, JSON and plot; returns the table."""
     from hrn_vo_ros.cli.evaluate import format_table
-    from hrn_vo_ros.core.evaluation import evaluate as ev
+    from hrn_vo_ros.core.evaluation.protocol import evaluate as ev
     from hrn_vo_ros.io.ecd import read_groundtruth
     from hrn_vo_ros.io.estimates import read_estimates
     from hrn_vo_ros.io.plots import plot_evaluation

@@ -2,7 +2,7 @@
 [--convention swing-twist|euler]``.
 
 Evaluates an estimate CSV (``t,h,v,r[,z]``, as ``hrn-vo run`` writes it) against the dataset's
-``groundtruth.txt`` with the paper's protocol (:mod:`hrn_vo_ros.core.evaluation`): lag by
+``groundtruth.txt`` with the paper's protocol (:mod:`hrn_vo_ros.core.evaluation.protocol`): lag by
 cross-correlation, 70/30 split, Umeyama calibration, median errors on the test part. Prints a
 table and, last, one JSON line (``--json``: the JSON line only). ``--plot OUT.png`` draws the
 calibrated trajectory against the ground truth. ``--lag-scan MS`` (a diagnostic, not the
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from hrn_vo_ros.cli.main import echo
-from hrn_vo_ros.core.evaluation import (
+from hrn_vo_ros.core.evaluation.protocol import (
     CALIB_MODES,
     EVAL_KINDS,
     EvalResult,

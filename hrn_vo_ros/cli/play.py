@@ -14,7 +14,7 @@ from pathlib import Path
 import time
 
 from hrn_vo_ros.cli.main import echo
-from hrn_vo_ros.core.playback import PlaybackConfig
+from hrn_vo_ros.io.playback import PlaybackConfig
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

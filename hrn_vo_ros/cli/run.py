@@ -22,11 +22,11 @@ import yaml
 
 from hrn_vo_ros.cli.main import echo
 from hrn_vo_ros.cli.progress import Progress
-from hrn_vo_ros.core.backends import BackendConfig, BACKENDS, make_backend, SpikingDiagnostics
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.evaluation import EstimateSeries
-from hrn_vo_ros.core.frames import Packetizer, with_calibration
-from hrn_vo_ros.core.imu import GyroIntegrator
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
+from hrn_vo_ros.core.events.frames import Packetizer, with_calibration
+from hrn_vo_ros.core.hrn.backends import BackendConfig, BACKENDS, make_backend, SpikingDiagnostics
+from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError
 from hrn_vo_ros.io import ecd

@@ -1,6 +1,6 @@
 """``hrn-vo simulate OUT --kind rotation|translation|arm --seconds S --seed K``.
 
-Simulates a sequence (:func:`hrn_vo_ros.core.simulator.simulate`) and writes it in the Event
+Simulates a sequence (:func:`hrn_vo_ros.core.sim.simulator.simulate`) and writes it in the Event
 Camera Dataset text layout with :func:`hrn_vo_ros.io.ecd.write_sequence` (``events.txt``,
 ``imu.txt``, ``groundtruth.txt``, ``calib.txt`` and ``meta.json`` with the sensor size).
 """
@@ -13,7 +13,7 @@ import time
 
 from hrn_vo_ros.cli.main import echo
 from hrn_vo_ros.cli.progress import Progress
-from hrn_vo_ros.core.simulator import describe_motion, KINDS, simulate, SimulatorConfig
+from hrn_vo_ros.core.sim.simulator import describe_motion, KINDS, simulate, SimulatorConfig
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import write_sequence
 

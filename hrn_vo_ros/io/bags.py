@@ -44,7 +44,7 @@ from rosbags.typesys import get_types_from_msg, Stores
 from rosbags.typesys import get_typestore as _get_typestore
 from rosbags.typesys.store import Typestore
 
-from hrn_vo_ros.core.events import EventArray
+from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.errors import BagError, DecodeError
 from hrn_vo_ros.io import eventpacket
 

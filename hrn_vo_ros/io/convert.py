@@ -21,7 +21,7 @@ Output (:func:`convert`): a ROS 2 bag (MCAP by default) with
 
 Every stamp and bag time is the sensor clock (int64 ns). Records are written in bag-time order.
 No event is lost or reordered: :class:`ConversionStats` carries the count and an
-:class:`~hrn_vo_ros.core.events.EventChecksum` of what was written. The bag is written as
+:class:`~hrn_vo_ros.core.events.arrays.EventChecksum` of what was written. The bag is written as
 ``DST.partial/`` and renamed when complete (:class:`~hrn_vo_ros.io.bags.BagWriter`).
 """
 
@@ -40,8 +40,8 @@ from numpy.typing import NDArray
 from rosbags.interfaces import Qos
 from rosbags.typesys.store import Typestore
 
-from hrn_vo_ros.core.events import EventArray, EventChecksum
-from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Trajectory
+from hrn_vo_ros.core.events.arrays import EventArray, EventChecksum
+from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Trajectory
 from hrn_vo_ros.errors import ConfigError, DatasetError
 from hrn_vo_ros.io import bags, ecd, eventpacket, npy, ros1bag
 

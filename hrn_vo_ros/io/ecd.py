@@ -17,7 +17,7 @@ and line counts that reveal a file truncated at a line boundary) and fall back t
 Public API:
 
 * :func:`write_sequence(folder, seq) <write_sequence>`: writes a
-  :class:`~hrn_vo_ros.core.sequence.Sequence`; refuses to overwrite; writes into a hidden
+  :class:`~hrn_vo_ros.core.events.sequence.Sequence`; refuses to overwrite; writes into a hidden
   ``.<name>.partial-*`` folder first and renames it, so an interrupted write never looks complete.
 * :func:`iter_events(path, *, chunk_events=1_000_000) <iter_events>` ->
   ``Iterator[EventArray]``: streaming event reader for a folder or its zip (streamed from the
@@ -56,8 +56,8 @@ import zipfile
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence, Trajectory
 from hrn_vo_ros.errors import DatasetError
 
 DEFAULT_SENSOR_SIZE = (240, 180)

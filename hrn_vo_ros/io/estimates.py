@@ -7,7 +7,7 @@ Extra columns after these (e.g. confidences) are allowed and ignored by the read
 Public API:
 
 * :func:`write_estimates(path, est) <write_estimates>` — an
-  :class:`~hrn_vo_ros.core.evaluation.EstimateSeries` to CSV;
+  :class:`~hrn_vo_ros.core.evaluation.protocol.EstimateSeries` to CSV;
 * :func:`read_estimates(path) <read_estimates>` -> ``EstimateSeries``; a missing file, a header
   without t, h, v, r, a malformed row or unsorted times raise
   :class:`~hrn_vo_ros.errors.DatasetError` naming the file and line.
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hrn_vo_ros.core.evaluation import EstimateSeries
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import seconds_to_ns
 

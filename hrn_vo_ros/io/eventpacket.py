@@ -34,7 +34,7 @@ import struct
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.events import EventArray
+from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.errors import DecodeError
 
 ENCODINGS = ('mono', 'evt3')

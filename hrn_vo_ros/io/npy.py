@@ -26,8 +26,8 @@ import zipfile
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.sequence import Trajectory
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.sequence import Trajectory
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import parse_table, seconds_to_ns
 

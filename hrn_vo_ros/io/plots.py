@@ -19,7 +19,7 @@ from matplotlib.axes import Axes
 import matplotlib.pyplot as plt
 import numpy as np
 
-from hrn_vo_ros.core.evaluation import EvalResult
+from hrn_vo_ros.core.evaluation.protocol import EvalResult
 
 _GT = '#d95f02'
 _EST = '#1b6ac9'
@@ -44,7 +44,7 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
     """Write a PNG of the calibrated estimate against the ground truth.
 
     Args:
-        result: An :class:`~hrn_vo_ros.core.evaluation.EvalResult`.
+        result: An :class:`~hrn_vo_ros.core.evaluation.protocol.EvalResult`.
         out: PNG path (parent folders are created).
         title: Figure title (default: kind and headline metrics).
 

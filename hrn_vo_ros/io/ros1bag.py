@@ -8,7 +8,7 @@ message stamps (event ``ts``, header stamps) in int64 ns.
 
 Public API: :class:`Ros1Dataset` (``events()`` iterator, ``imu()``, ``groundtruth()``,
 ``calib()``, ``n_event_messages``) and :func:`write_ros1_bag` (a
-:class:`~hrn_vo_ros.core.sequence.Sequence` as such a bag, for fixtures and tests).
+:class:`~hrn_vo_ros.core.events.sequence.Sequence` as such a bag, for fixtures and tests).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from rosbags.typesys import get_types_from_msg, Stores
 from rosbags.typesys import get_typestore as _get_typestore
 from rosbags.typesys.store import Typestore
 
-from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence, Trajectory
 from hrn_vo_ros.errors import BagError, DatasetError, DecodeError
 from hrn_vo_ros.io import eventpacket
 

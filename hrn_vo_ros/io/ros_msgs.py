@@ -9,9 +9,9 @@ Topics and types of the node graph:
   the readout values (h, v in downsampled pixels, r in radians, z log scale), ``effort`` = the
   per-factor readout confidence (0..1), ``velocity`` empty; ``header.stamp`` = frame time.
 * ``~/camera_info`` of the packetizer: ``sensor_msgs/CameraInfo`` (``plumb_bob``, or no model
-  with no coefficients) → :class:`~hrn_vo_ros.core.sequence.CameraCalibration`.
+  with no coefficients) → :class:`~hrn_vo_ros.core.events.sequence.CameraCalibration`.
 * ``~/pose`` (PoseStamped), ``~/odom`` (Odometry), ``/tf`` (TFMessage) from an
-  :class:`~hrn_vo_ros.core.odometry.OdomPose`; images of the map/readout as ``mono8``.
+  :class:`~hrn_vo_ros.core.odometry.odometry.OdomPose`; images of the map/readout as ``mono8``.
 
 Every decoder raises :class:`~hrn_vo_ros.errors.DecodeError` on malformed input, so nodes count
 and log it instead of crashing. No function here needs ``rclpy.init``.
@@ -33,9 +33,9 @@ from numpy.typing import NDArray
 from sensor_msgs.msg import Image, JointState
 from tf2_msgs.msg import TFMessage
 
-from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.odometry import OdomPose
-from hrn_vo_ros.core.sequence import CameraCalibration
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.core.odometry.odometry import OdomPose
 from hrn_vo_ros.errors import DecodeError
 from hrn_vo_ros.io.eventpacket import PacketDecoder
 

@@ -4,7 +4,7 @@ Every selected topic is published with its recorded type as raw CDR (no re-seria
 ``publish(bytes)``; the message class is imported only for its type support) and with its
 recorded QoS profile (best effort for event packets, transient local for camera info; with
 ``reliable`` every topic is RELIABLE, for lossless replay into reliable subscribers). Timing
-follows the bag (:class:`~hrn_vo_ros.core.playback.PlaybackSchedule`): real time, a ``rate``
+follows the bag (:class:`~hrn_vo_ros.io.playback.PlaybackSchedule`): real time, a ``rate``
 factor, or ``max_rate`` (no timing; RELIABLE + KEEP_ALL writers, so reliable KEEP_ALL subscribers
 pace the player). With ``clock`` it
 publishes ``/clock`` for ``use_sim_time`` nodes. It exits when the bag is done and logs the
@@ -28,9 +28,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from hrn_vo_ros.core.playback import play, PlaybackConfig, publish_retrying
 from hrn_vo_ros.errors import BagError, ConfigError, HrnVoError
 from hrn_vo_ros.io import bags, ros_msgs
+from hrn_vo_ros.io.playback import play, PlaybackConfig, publish_retrying
 
 EVENT_TYPES = (bags.EVENT_PACKET, bags.DVS_EVENT_ARRAY)
 LINGER_S = 0.5  # after the last record, so that best-effort samples leave the process

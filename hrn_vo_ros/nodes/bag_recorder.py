@@ -15,13 +15,13 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 
-from hrn_vo_ros.core.nodeconfig import RecorderNodeConfig
-from hrn_vo_ros.core.nodestats import NodeStats
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.io.nodeconfig import RecorderNodeConfig
 from hrn_vo_ros.io.recording import BagRecorder
 from hrn_vo_ros.nodes.common import publish_diagnostics, qos, run
 from hrn_vo_ros.nodes.params import declare_config
+from hrn_vo_ros.nodes.stats import NodeStats
 
 
 class BagRecorderNode(Node):

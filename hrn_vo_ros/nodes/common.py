@@ -11,9 +11,9 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from hrn_vo_ros.core.nodestats import NodeStats
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.nodes.stats import NodeStats
 
 
 def qos(depth: int, *, reliable: bool = True, keep_all: bool = False) -> QoSProfile:

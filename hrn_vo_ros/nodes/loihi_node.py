@@ -18,7 +18,7 @@ from typing import Any
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image
 
-from hrn_vo_ros.core.backends import SpikingDiagnostics
+from hrn_vo_ros.core.hrn.backends import SpikingDiagnostics
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.nodes.common import run
 from hrn_vo_ros.nodes.resonator_node import ResonatorNode

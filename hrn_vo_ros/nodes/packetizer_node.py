@@ -2,7 +2,7 @@
 
 Subscribes ``~/events`` (``event_camera_msgs/EventPacket``, mono or evt3; BEST_EFFORT depth 1000
 as the drivers publish, RELIABLE with ``events_reliable``), bins fixed-count packets of events
-with :class:`~hrn_vo_ros.core.frames.Packetizer` (a frame may span many messages, a message may
+with `core.events.frames.Packetizer` (a frame may span many messages, a message may
 complete many frames) and publishes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, stamp = the
 packet midpoint on the sensor clock, ``frame_id`` from a parameter). Sequence gaps, malformed
 packets and rates go to ``/diagnostics``.
@@ -27,16 +27,16 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
-from hrn_vo_ros.core.events import EventArray
-from hrn_vo_ros.core.frames import Packetizer, PacketizerConfig, with_calibration
-from hrn_vo_ros.core.nodeconfig import PacketizerNodeConfig
-from hrn_vo_ros.core.nodestats import NodeStats, packet_problem
-from hrn_vo_ros.core.sequence import CameraCalibration
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.eventpacket import PacketDecoder
+from hrn_vo_ros.io.nodeconfig import PacketizerNodeConfig
 from hrn_vo_ros.nodes.common import publish_diagnostics, qos, Rejects, run
 from hrn_vo_ros.nodes.params import declare_config
+from hrn_vo_ros.nodes.stats import NodeStats, packet_problem
 
 
 class PacketizerNode(Node):

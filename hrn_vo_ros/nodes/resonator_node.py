@@ -31,16 +31,16 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
-from hrn_vo_ros.core.backends import BackendConfig, make_backend, ResonatorBackend
-from hrn_vo_ros.core.hrn import ResonatorConfig, without_unset_sphere
-from hrn_vo_ros.core.imubuffer import GyroBuffer
-from hrn_vo_ros.core.nodeconfig import ResonatorNodeConfig
-from hrn_vo_ros.core.nodestats import NodeStats
-from hrn_vo_ros.core.odometry import readout_to_pose
+from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
+from hrn_vo_ros.core.hrn.network import ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.odometry.imubuffer import GyroBuffer
+from hrn_vo_ros.core.odometry.odometry import readout_to_pose
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
 from hrn_vo_ros.nodes.common import publish_diagnostics, qos, Rejects, run
 from hrn_vo_ros.nodes.params import declare_config
+from hrn_vo_ros.nodes.stats import NodeStats
 
 
 class ResonatorNode(Node):

@@ -19,7 +19,7 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from hrn_vo_ros.core.events import EventChecksum
+from hrn_vo_ros.core.events.arrays import EventChecksum
 from hrn_vo_ros.io import eventpacket
 
 

@@ -1,6 +1,6 @@
 """The HRN as spiking phasor populations: the float HRN's equations, spiking neurons underneath.
 
-:class:`SpikingHRN` is :class:`~hrn_vo_ros.core.hrn.HRN` (same ``step``, readout, map, IMU
+:class:`SpikingHRN` is :class:`~hrn_vo_ros.core.hrn.network.HRN` (same ``step``, readout, map, IMU
 prediction) whose fast engine is :class:`SpikingEngine`. The engine keeps the float engine's
 equations (Model A, hrn_math.md §2.3) and overrides its two hooks:
 
@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.estimate import Estimate
-from hrn_vo_ros.core.hrn import (
+from hrn_vo_ros.core.hrn.logpolar import Geometry
+from hrn_vo_ros.core.hrn.network import (
     _Engine,
     _FastEngine,
     cleanup_weights,
@@ -44,7 +44,7 @@ from hrn_vo_ros.core.hrn import (
     ResonatorConfig,
     state_gamma,
 )
-from hrn_vo_ros.core.logpolar import Geometry
+from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.accounting import cores_for, IterationAccount
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
 from hrn_vo_ros.core.spiking.config import SpikingConfig

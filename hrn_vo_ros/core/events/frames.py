@@ -1,0 +1,325 @@
+"""Fixed-count event packets → binary downsampled event frames (paper Methods, hrn_math.md §1.1).
+
+Polarity is dropped. Coordinates are downsampled by a (possibly fractional) factor ``f``:
+
+    x_out = floor((x + 0.5) / f)          # = round((x + 0.5) / f - 0.5): pixel centres map to bins
+    W_out = ceil(W / f)
+
+so 240x180 → 96x72 with f = 2.5 and 640x480 → 64x48 with f = 10, and every sensor pixel lands in
+exactly one output pixel. (The paper's "divide by the factor and round" taken literally sends
+x = 239 to round(95.6) = 96, one past the 96-pixel image; the centre-aligned form above is the
+same division-and-rounding with pixel centres at x + 0.5.) A pixel is 1 when it received more
+than ``min_events_per_pixel - 1`` events (``min_events_per_pixel = 1`` for shapes, 2 for the
+arm), else 0. The frame time is the midpoint of the first and last event of the packet (int64
+ns, rounded down).
+
+**Rectification** (``rectify``: ``none``, ``pinhole`` or ``equidistant``; :mod:`.camera`) moves
+each sensor pixel to its rectified continuous position before the same division and rounding, so
+the rounding happens once, at frame resolution. It is a per-sensor-pixel lookup table built from
+the calibration (``calib.*``: from the dataset's ``calib.txt`` in ``hrn-vo run``, from
+``camera_info`` in the packetizer node). Events whose rectified position falls outside the frame
+are not counted into packets; :attr:`Packetizer.outside` counts them.
+
+Packetizing is vectorised: one ``bincount`` (or one scatter when any event lights a pixel) over
+``packet * H * W + pixel`` for all complete packets of a batch; no per-event Python.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.configbase import nested, param, validate
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.camera import rectified_pixels, RECTIFY_MODES
+from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.errors import ConfigError, DatasetError
+
+
+@dataclass(frozen=True, slots=True)
+class CalibrationConfig:
+    """Intrinsics of the sensor (``calib.txt`` / ``CameraInfo`` plumb-bob), for ``rectify``."""
+
+    fx: float = param(0.0, 'focal length x in sensor pixels (0: unknown, taken from the dataset '
+                      "calib.txt or the node's camera_info topic)", lo=0.0, hi=1e6)
+    fy: float = param(0.0, 'focal length y in sensor pixels (0: unknown)', lo=0.0, hi=1e6)
+    cx: float = param(0.0, 'principal point x in sensor pixels', lo=-1e6, hi=1e6)
+    cy: float = param(0.0, 'principal point y in sensor pixels', lo=-1e6, hi=1e6)
+    dist: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0, 0.0),
+                                    'distortion k1 k2 p1 p2 k3 (radial-tangential / plumb_bob)',
+                                    lo=-1e3, hi=1e3)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if len(self.dist) != 5:
+            raise ConfigError(f'calib.dist has {len(self.dist)} values; give the 5 plumb-bob '
+                              'coefficients k1 k2 p1 p2 k3')
+        if (self.fx > 0) != (self.fy > 0):
+            raise ConfigError('calib.fx and calib.fy must both be set (> 0) or both be 0')
+
+    @property
+    def known(self) -> bool:
+        """True when the focal lengths are set."""
+        return self.fx > 0
+
+
+@dataclass(frozen=True, slots=True)
+class PacketizerConfig:
+    """How events become frames (one packet of ``events_per_frame`` events per frame)."""
+
+    events_per_frame: int = param(2000, 'events per packet (2000 shapes, 5000 robot arm)',
+                                  lo=1, hi=10_000_000)
+    sensor_width: int = param(240, 'sensor width in pixels (DAVIS240C 240, Prophesee 640)',
+                              lo=1, hi=65535, read_only=True)
+    sensor_height: int = param(180, 'sensor height in pixels (DAVIS240C 180, Prophesee 480)',
+                               lo=1, hi=65535, read_only=True)
+    downsample: float = param(2.5, 'coordinate downsampling factor f: x_out = floor((x+0.5)/f) '
+                              '(2.5: 240x180 -> 96x72; 10: 640x480 -> 64x48)',
+                              lo=1.0, hi=1000.0, read_only=True)
+    min_events_per_pixel: int = param(1, 'a frame pixel is 1 with at least this many events '
+                                      '(1: ">0", shapes; 2: ">1", robot arm)', lo=1, hi=1000)
+    rectify: str = param('none', 'move events to an ideal camera before binning: none, pinhole '
+                         '(undistorted), equidistant (undistorted, radius = f * angle); '
+                         'needs calib', choices=RECTIFY_MODES, read_only=True)
+    calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if not math.isfinite(self.downsample):
+            raise ConfigError('PacketizerConfig.downsample must be a finite number >= 1')
+
+    @property
+    def width(self) -> int:
+        """Frame width in pixels, ceil(sensor_width / downsample)."""
+        return _out_size(self.sensor_width, self.downsample)
+
+    @property
+    def height(self) -> int:
+        """Frame height in pixels, ceil(sensor_height / downsample)."""
+        return _out_size(self.sensor_height, self.downsample)
+
+
+def _out_size(n: int, f: float) -> int:
+    # Tolerate float noise (240 / 2.5 = 96.00000000000001 must give 96).
+    return max(1, math.ceil(n / f - 1e-9))
+
+
+def downsample_lut(n: int, f: float) -> NDArray[np.intp]:
+    """Output index of every sensor coordinate 0..n-1: floor((x + 0.5) / f), clipped.
+
+    Shapes:
+        returns (n,) intp.
+    """
+    out = np.floor((np.arange(n, dtype=np.float64) + 0.5) / f).astype(np.intp)
+    return np.minimum(out, _out_size(n, f) - 1)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class EventFrame:
+    """One binary event frame.
+
+    Shapes:
+        image: (H, W) uint8, values 0 or 1.
+    """
+
+    t_ns: int
+    image: NDArray[np.uint8]
+    n_events: int
+    t_first_ns: int
+    t_last_ns: int
+
+
+class _Binner:
+    """Flat pixel index lookup and packet binning shared by the stateful and batch forms."""
+
+    def __init__(self, cfg: PacketizerConfig) -> None:
+        self.cfg = cfg
+        self.h, self.w = cfg.height, cfg.width
+        self.lut_x = downsample_lut(cfg.sensor_width, cfg.downsample).astype(np.int32)
+        self.lut_y = (downsample_lut(cfg.sensor_height, cfg.downsample) * cfg.width).astype(
+            np.int32)
+        self.lut: NDArray[np.int32] | None = None
+        if cfg.rectify != 'none':
+            self.lut = rectify_lut(cfg)
+
+    def check(self, ev: EventArray) -> None:
+        if len(ev) == 0:
+            return
+        xmax, ymax = int(ev.x.max()), int(ev.y.max())
+        if xmax >= self.cfg.sensor_width or ymax >= self.cfg.sensor_height:
+            msg = (f'event coordinate (x={xmax}, y={ymax}) max is outside the '
+                   f'{self.cfg.sensor_width}x{self.cfg.sensor_height} sensor: set '
+                   'sensor_width/sensor_height to the camera resolution')
+            raise DatasetError(msg)
+
+    def pixels(self, ev: EventArray) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+        """Flat frame pixel and time of every event that lands in the frame."""
+        if self.lut is None:
+            out: NDArray[np.int32] = self.lut_x[ev.x]
+            out += self.lut_y[ev.y]
+            return out, ev.t
+        flat = ev.y.astype(np.intp)
+        flat *= self.cfg.sensor_width
+        flat += ev.x
+        pix = self.lut[flat]
+        inside = pix >= 0
+        if inside.all():
+            return pix, ev.t
+        return pix[inside], ev.t[inside]
+
+    def images(self, pix: NDArray[np.int32], n_packets: int) -> NDArray[np.uint8]:
+        """Binary frames of ``n_packets`` consecutive full packets from flat pixel indices."""
+        npx = self.h * self.w
+        k = self.cfg.events_per_frame
+        flat = pix[:n_packets * k].astype(np.intp)
+        flat += np.repeat(np.arange(n_packets, dtype=np.intp) * npx, k)
+        if self.cfg.min_events_per_pixel <= 1:
+            out = np.zeros(n_packets * npx, np.uint8)
+            out[flat] = 1
+        else:
+            counts = np.bincount(flat, minlength=n_packets * npx)
+            out = (counts >= self.cfg.min_events_per_pixel).astype(np.uint8)
+        return out.reshape(n_packets, self.h, self.w)
+
+
+def with_calibration(cfg: PacketizerConfig, calib: CameraCalibration) -> PacketizerConfig:
+    """``cfg`` with ``calib`` filled in from a dataset's calibration when it is still unknown.
+
+    Explicit ``calib.*`` values win; without rectification the config is returned unchanged.
+
+    Raises:
+        DatasetError: if the calibration is for another sensor size.
+    """
+    if cfg.rectify == 'none' or cfg.calib.known:
+        return cfg
+    if (calib.width, calib.height) != (cfg.sensor_width, cfg.sensor_height):
+        raise DatasetError(f'the calibration is for a {calib.width}x{calib.height} sensor, the '
+                           f'events for {cfg.sensor_width}x{cfg.sensor_height}')
+    return replace(cfg, calib=CalibrationConfig(fx=calib.fx, fy=calib.fy, cx=calib.cx,
+                                                cy=calib.cy, dist=tuple(calib.dist)))
+
+
+def rectify_lut(cfg: PacketizerConfig) -> NDArray[np.int32]:
+    """Flat frame pixel of every sensor pixel (``y * sensor_width + x``) under ``cfg.rectify``.
+
+    -1 marks sensor pixels whose rectified position lies outside the frame.
+
+    Raises:
+        ConfigError: if rectification is on and the calibration is unknown.
+    """
+    c = cfg.calib
+    if cfg.rectify != 'none' and not c.known:
+        raise ConfigError(f'rectify = {cfg.rectify} needs the camera calibration: set '
+                          'calib.fx/fy/cx/cy/dist (hrn-vo run reads calib.txt; the packetizer '
+                          'node reads camera_info)')
+    xr, yr = rectified_pixels(cfg.rectify, cfg.sensor_width, cfg.sensor_height, c.fx, c.fy,
+                              c.cx, c.cy, c.dist)
+    u = np.floor((xr + 0.5) / cfg.downsample)
+    v = np.floor((yr + 0.5) / cfg.downsample)
+    inside = (u >= 0) & (u < cfg.width) & (v >= 0) & (v < cfg.height)
+    flat = np.where(inside, v * cfg.width + u, -1)
+    return flat.astype(np.int32).ravel()
+
+
+def frames_from_events(ev: EventArray, cfg: PacketizerConfig
+                       ) -> tuple[NDArray[np.int64], NDArray[np.uint8]]:
+    """All complete packets of ``ev`` as frames (a trailing partial packet is dropped).
+
+    Args:
+        ev: Events in time order.
+        cfg: Packetizer settings.
+
+    Returns:
+        ``(t_ns, images)``: packet midpoints and binary frames.
+
+    Shapes:
+        t_ns: (n,) int64; images: (n, H, W) uint8.
+
+    Raises:
+        DatasetError: if an event lies outside the sensor.
+    """
+    b = _Binner(cfg)
+    b.check(ev)
+    k = cfg.events_per_frame
+    pix, t = b.pixels(ev)
+    n = len(t) // k
+    images = b.images(pix, n)
+    t = t[:n * k]
+    first, last = t[0::k], t[k - 1::k]
+    return first + (last - first) // 2, images
+
+
+class Packetizer:
+    """Stateful packetizer: feed event batches of any size, get every completed frame.
+
+    Partial packets carry over between calls, so a frame may span many pushes and one push may
+    complete many frames.
+
+    Args:
+        cfg: Packetizer settings.
+    """
+
+    def __init__(self, cfg: PacketizerConfig | None = None) -> None:
+        self.cfg = cfg if cfg is not None else PacketizerConfig()
+        self._b = _Binner(self.cfg)
+        self._pend_pix: list[NDArray[np.int32]] = []
+        self._pend_t: list[NDArray[np.int64]] = []
+        self._pending = 0
+        self._last_t: int | None = None
+        self._outside = 0
+
+    @property
+    def pending(self) -> int:
+        """Events waiting for their packet to fill up."""
+        return self._pending
+
+    @property
+    def outside(self) -> int:
+        """Events so far whose rectified position fell outside the frame (not binned)."""
+        return self._outside
+
+    def reset(self) -> None:
+        """Drop pending events and the time-order memory."""
+        self._pend_pix, self._pend_t, self._pending, self._last_t = [], [], 0, None
+
+    def push(self, ev: EventArray) -> list[EventFrame]:
+        """Add events (in time order) and return the frames they complete.
+
+        Raises:
+            DatasetError: if an event lies outside the sensor, or the batch starts before the
+                end of the previous one.
+        """
+        if len(ev) == 0:
+            return []
+        self._b.check(ev)
+        if self._last_t is not None and int(ev.t[0]) < self._last_t:
+            msg = (f'events go back in time: batch starts at {int(ev.t[0])} ns after an event '
+                   f'at {self._last_t} ns; feed batches in time order (or reset())')
+            raise DatasetError(msg)
+        self._last_t = int(ev.t[-1])
+        k = self.cfg.events_per_frame
+        pix, t = self._b.pixels(ev)
+        self._outside += len(ev) - len(t)
+        total = self._pending + len(t)
+        if total < k:
+            self._pend_pix.append(pix)
+            self._pend_t.append(t)
+            self._pending = total
+            return []
+        if self._pending:
+            pix = np.concatenate([*self._pend_pix, pix])
+            t = np.concatenate([*self._pend_t, t])
+        n = total // k
+        images = self._b.images(pix, n)
+        used = n * k
+        first, last = t[0:used:k], t[k - 1:used:k]
+        mid = first + (last - first) // 2
+        rest = total - used
+        self._pend_pix = [pix[used:].copy()] if rest else []
+        self._pend_t = [t[used:].copy()] if rest else []
+        self._pending = rest
+        return [EventFrame(t_ns=int(mid[i]), image=images[i], n_events=k,
+                           t_first_ns=int(first[i]), t_last_ns=int(last[i])) for i in range(n)]

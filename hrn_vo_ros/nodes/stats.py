@@ -1,0 +1,98 @@
+"""Book-keeping of a running node: message counts, sequence gaps, rates, processing times.
+
+Pure Python, so node callbacks only call methods here and the numbers are unit-testable.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+import math
+import time
+
+import numpy as np
+
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.frames import PacketizerConfig
+
+
+class NodeStats:
+    """Counters, a sequence-gap detector, a rate meter and a processing-time window.
+
+    Args:
+        window: How many recent processing times the percentiles use.
+    """
+
+    def __init__(self, window: int = 500) -> None:
+        self.counts: Counter[str] = Counter()
+        self.bad: Counter[str] = Counter()
+        self.seq_gaps = 0
+        self.seq_resets = 0
+        self._last_seq: int | None = None
+        self._proc: deque[float] = deque(maxlen=window)
+        self._rate_mark = (time.monotonic(), 0)
+
+    def count(self, key: str, n: int = 1) -> None:
+        """Add ``n`` to counter ``key`` (messages in, frames out, ...)."""
+        self.counts[key] += n
+
+    def reject(self, kind: str) -> None:
+        """Count one malformed message of ``kind`` (``decode``, ``empty``, ...)."""
+        self.bad[kind] += 1
+
+    def sequence(self, seq: int) -> int:
+        """Record a message sequence number; returns how many messages were missed before it.
+
+        A number that does not increase counts as a reset (a restarted publisher), not a gap.
+        """
+        missed = 0
+        if self._last_seq is not None:
+            if seq > self._last_seq:
+                missed = seq - self._last_seq - 1
+                self.seq_gaps += missed
+            else:
+                self.seq_resets += 1
+        self._last_seq = seq
+        return missed
+
+    def processing(self, seconds: float) -> None:
+        """Record the processing time of one message."""
+        self._proc.append(seconds)
+
+    def processing_ms(self) -> tuple[float, float]:
+        """Median and 99th percentile of the recent processing times in milliseconds."""
+        if not self._proc:
+            return math.nan, math.nan
+        a = np.fromiter(self._proc, float) * 1e3
+        return float(np.median(a)), float(np.percentile(a, 99))
+
+    def rate(self, key: str) -> float:
+        """Rate of counter ``key`` per wall-clock second since the previous call."""
+        now, n = time.monotonic(), self.counts[key]
+        t0, n0 = self._rate_mark
+        self._rate_mark = (now, n)
+        return (n - n0) / (now - t0) if now > t0 else 0.0
+
+    def values(self) -> list[tuple[str, object]]:
+        """All counters as (key, value) pairs for a diagnostics message."""
+        out: list[tuple[str, object]] = sorted(self.counts.items())
+        out += [('bad_' + k, v) for k, v in sorted(self.bad.items())]
+        out += [('bad_total', sum(self.bad.values())), ('seq_gaps', self.seq_gaps),
+                ('seq_resets', self.seq_resets)]
+        med, p99 = self.processing_ms()
+        out += [('processing_ms_median', f'{med:.3f}'), ('processing_ms_p99', f'{p99:.3f}')]
+        return out
+
+
+def packet_problem(ev: EventArray, cfg: PacketizerConfig, last_t_ns: int | None) -> str | None:
+    """Why a decoded event packet cannot be binned, as a short kind, or None if it can.
+
+    Kinds: ``empty`` (no events), ``out_of_sensor`` (a coordinate outside the configured sensor
+    size), ``time_backwards`` (starts before the previous packet ended or is unsorted inside).
+    """
+    if len(ev) == 0:
+        return 'empty'
+    if int(ev.x.max()) >= cfg.sensor_width or int(ev.y.max()) >= cfg.sensor_height:
+        return 'out_of_sensor'
+    if (last_t_ns is not None and int(ev.t[0]) < last_t_ns) or bool(np.any(np.diff(ev.t) < 0)):
+        return 'time_backwards'
+    return None

@@ -1,0 +1,218 @@
+"""``hrn-vo run`` end to end on a small synthetic dataset; YAML configs; every bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from hrn_synth import event_frame, random_scene
+import numpy as np
+import pytest
+import yaml
+
+from hrn_vo_ros.cli.main import main
+from hrn_vo_ros.core.configbase import flat_keys, to_dict
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.frames import PacketizerConfig
+from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence
+from hrn_vo_ros.core.hrn.network import ResonatorConfig
+from hrn_vo_ros.errors import ConfigError
+from hrn_vo_ros.io.ecd import write_sequence
+from hrn_vo_ros.io.estimates import read_estimates
+from hrn_vo_ros.io.nodeconfig import PacketizerNodeConfig, ResonatorNodeConfig
+from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIGS = sorted((ROOT / 'config').glob('*.yaml'))
+OURS = ('shapes_rotation.yaml', 'shapes_translation.yaml', 'robot_arm.yaml')
+
+
+def synthetic_dataset(folder: Path, n_frames: int = 60, shift_per_frame: float = 0.15,
+                      roll_per_frame: float = 0.004) -> Path:
+    """Events of a sensor (240x180) panning right and rolling over a shapes scene.
+
+    Each 2000-event packet is drawn from the edge pixels of the view at one pose; the camera
+    moves right (+h) and rolls (+r), so the estimates must increase.
+    """
+    rng = np.random.default_rng(3)
+    scene = random_scene(rng, size=1000, n_shapes=700)
+    t, x, y = [], [], []
+    t0 = 1_000_000
+    for i in range(n_frames):
+        pose = (2.5 * shift_per_frame * i, 0.0, roll_per_frame * i, 0.0)
+        img = event_frame(scene, pose, rng, width=240, height=180, noise=0.0)
+        ys, xs = np.nonzero(img)
+        pick = rng.choice(len(xs), 2000, replace=len(xs) < 2000)
+        t.append(t0 + i * 5_000_000 + np.sort(rng.integers(0, 5_000_000, 2000)))
+        x.append(xs[pick])
+        y.append(ys[pick])
+    tt = np.concatenate(t)
+    ev = EventArray.from_arrays(tt, np.concatenate(x), np.concatenate(y),
+                                np.zeros(len(tt), np.uint8))
+    calib = CameraCalibration(width=240, height=180, fx=200.0, fy=200.0, cx=119.5, cy=89.5)
+    ti = np.arange(0, tt[-1] + 2_000_000, 1_000_000, dtype=np.int64)
+    gyro = np.zeros((len(ti), 3))
+    gyro[:, 2] = roll_per_frame / 5e-3       # rad/s about the optical axis
+    gyro[:, 1] = 0.15 / 200.0 / 5e-3         # pan right: 0.15 frame px / frame
+    imu = ImuData(t=ti, acc=np.zeros((len(ti), 3)), gyro=gyro)
+    return write_sequence(folder, Sequence(events=ev, calib=calib, imu=imu))
+
+
+@pytest.fixture(scope='module')
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return synthetic_dataset(tmp_path_factory.mktemp('run') / 'seq')
+
+
+@pytest.mark.parametrize('imu', [False, True])
+def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str],
+                                                     imu: bool) -> None:
+    out = tmp_path / 'est.csv'
+    argv = ['run', str(dataset), '--config', str(ROOT / 'config/shapes_rotation.yaml'),
+            '--out', str(out), '--quiet'] + (['--imu'] if imu else [])
+    assert main(argv) == 0
+    assert out.read_text().splitlines()[0] == 't,h,v,r'
+    est = read_estimates(out)
+    assert len(est) == 60
+    assert est.t[0] > 1_000_000 and np.all(np.diff(est.t) > 0)
+    # Truth at the last frame: h = 0.15 * 59 = 8.85 px, r = 0.004 * 59 = 0.236 rad.
+    assert abs(est.h[-1] - 8.85) < 1.5 and abs(est.v[-1]) < 1.5
+    assert abs(est.r[-1] - 0.236) < 0.05
+    assert '60 frames in' in capsys.readouterr().out
+
+
+def test_run_with_scale_writes_z(dataset: Path, tmp_path: Path) -> None:
+    out = tmp_path / 'est.csv'
+    assert main(['run', str(dataset), '--config', str(ROOT / 'config/shapes_translation.yaml'),
+                 '--out', str(out), '--quiet', '--set', 'map.learn=false']) == 0
+    assert out.read_text().splitlines()[0] == 't,h,v,r,z'
+    assert read_estimates(out).z is not None
+
+
+def test_run_bad_inputs_name_the_problem(dataset: Path, tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    out = str(tmp_path / 'est.csv')
+    assert main(['run', str(tmp_path / 'missing'), '--out', out]) == 3
+    assert 'missing' in capsys.readouterr().err
+    assert main(['run', str(dataset), '--out', out, '--config', str(tmp_path / 'no.yaml')]) == 2
+    assert 'no.yaml' in capsys.readouterr().err
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('resonator_node:\n  ros__parameters:\n    cleanup:\n      gama: 0.5\n')
+    assert main(['run', str(dataset), '--out', out, '--config', str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert 'bad.yaml' in err and 'gama' in err
+    assert main(['run', str(dataset), '--out', out, '--set', 'cleanup.gamma']) == 2
+    assert 'KEY=VALUE' in capsys.readouterr().err
+    assert main(['run', str(dataset), '--out', out, '--set', 'cleanup.gamma=7']) == 2
+    assert 'gamma' in capsys.readouterr().err
+    # A malformed events.txt line: the reader's error names the file and line.
+    broken = tmp_path / 'broken'
+    broken.mkdir()
+    for f in ('calib.txt',):
+        (broken / f).write_text((dataset / f).read_text())
+    (broken / 'events.txt').write_text('0.000001 1 2 1\n0.000002 1 x 1\n')
+    assert main(['run', str(broken), '--out', out]) == 3
+    assert 'events.txt:2' in capsys.readouterr().err
+    # Fewer events than one packet.
+    short = tmp_path / 'short'
+    short.mkdir()
+    (short / 'events.txt').write_text('0.000001 1 2 1\n')
+    assert main(['run', str(short), '--out', out]) == 3
+    assert 'fewer events than one packet' in capsys.readouterr().err
+    # Rectification needs calib.txt.
+    assert main(['run', str(short), '--out', out, '--set', 'packetizer.rectify=pinhole']) == 3
+    assert 'calib.txt' in capsys.readouterr().err
+
+
+def test_run_rectifies_with_the_dataset_calibration(dataset: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """calib.txt is read for rectify; the rectified run still follows the motion."""
+    base = ['run', str(dataset), '--config', str(ROOT / 'config/shapes_rotation.yaml'),
+            '--quiet', '--out']
+    # the sphere correction assumes equidistant frames: refused with any other rectification
+    assert main([*base, str(tmp_path / 'x.csv'), '--set', 'packetizer.rectify=none']) == 2
+    assert 'needs equidistant-rectified frames' in capsys.readouterr().err
+    assert main([*base, str(tmp_path / 'plain.csv'), '--set', 'packetizer.rectify=none',
+                 '--set', 'sphere.enabled=false']) == 0
+    assert main([*base, str(tmp_path / 'eq.csv')]) == 0     # the config's rectify: equidistant
+    assert 'outside the frame' not in capsys.readouterr().out   # equidistant keeps every event
+    plain, eq = read_estimates(tmp_path / 'plain.csv'), read_estimates(tmp_path / 'eq.csv')
+    assert len(eq) == len(plain) == 60
+    assert not np.allclose(eq.h, plain.h)                  # the frames did change
+    # radius f * atan(rho) / rho shrinks the view a little: the same pan, slightly fewer pixels
+    assert abs(eq.h[-1] - 8.85) < 1.5 and abs(eq.r[-1] - 0.236) < 0.05
+    assert main([*base, str(tmp_path / 'pin.csv'), '--set', 'packetizer.rectify=pinhole',
+                 '--set', 'sphere.enabled=false',
+                 '--set', 'packetizer.calib.fx=200', '--set', 'packetizer.calib.fy=200',
+                 '--set', 'packetizer.calib.cx=119.5', '--set', 'packetizer.calib.cy=89.5',
+                 '--set', 'packetizer.calib.dist=[-0.3, 0, 0, 0, 0]']) == 0
+    # explicit calib wins over calib.txt (no distortion there): the corners leave the frame
+    assert 'events rectified outside the frame' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('name', OURS)
+def test_yaml_keys_are_exactly_the_config_fields(name: str) -> None:
+    """Every algorithm field is in the file (explained there), and nothing unknown."""
+    data = yaml.safe_load((ROOT / 'config' / name).read_text())
+    for node, cls, node_cls in (('packetizer_node', PacketizerConfig, PacketizerNodeConfig),
+                                ('resonator_node', ResonatorConfig, ResonatorNodeConfig)):
+        params = data[node]['ros__parameters']
+        node_only = {f.name for f in dataclasses.fields(node_cls)} | {'node'}
+        ours = {k: v for k, v in params.items() if k not in node_only}
+
+        def flat(d: dict, prefix: str = '') -> set[str]:
+            keys: set[str] = set()
+            for k, v in d.items():
+                keys |= flat(v, prefix + k + '.') if isinstance(v, dict) else {prefix + k}
+            return keys
+
+        assert flat(ours) == flat_keys(cls), node
+    pcfg, rcfg = load_configs(ROOT / 'config' / name)
+    assert (rcfg.width, rcfg.height) == (pcfg.width, pcfg.height)
+    text = (ROOT / 'config' / name).read_text()
+    for line in text.splitlines():
+        if ':' in line and not line.strip().startswith('#') and not line.rstrip().endswith(':'):
+            assert '#' in line, f'{name}: value without an explanation: {line.strip()}'
+
+
+def test_dataset_configs_derive_what_run_and_graph_share(dataset: Path) -> None:
+    """Sensor size, frame size and focal length from the dataset; the sphere check."""
+    rot = ROOT / 'config/shapes_rotation.yaml'
+    dc = dataset_configs(rot, dataset, packetizer={'downsample': 4})
+    p, r = dc.packetizer, dc.resonator
+    assert (p.sensor_width, p.sensor_height) == (240, 180) and (r.width, r.height) == (60, 45)
+    assert r.focal_px == pytest.approx(200.0 / 4)           # sphere on: fx / downsample
+    assert dc.resonator_overrides['focal_px'] == r.focal_px  # what a node is given
+    plain = dataset_configs(ROOT / 'config/robot_arm.yaml', dataset).resonator
+    assert plain.focal_px == 0.0                               # neither IMU nor sphere
+    assert dataset_configs(rot, dataset, resonator={'focal_px': 70.0}).resonator.focal_px == 70
+    with pytest.raises(ConfigError, match='needs equidistant-rectified frames'):
+        dataset_configs(rot, dataset, packetizer={'rectify': 'pinhole'})
+
+
+def test_graph_takes_the_same_dataset_parameters(dataset: Path, tmp_path: Path) -> None:
+    from hrn_vo_ros.nodes.graph import dataset_overrides
+    pk, rs = dataset_overrides(dataset, ROOT / 'config/shapes_rotation.yaml', imu=True)
+    assert pk['sensor_width'] == 240 and rs['width'] == 96 and rs['imu.enabled'] is True
+    assert rs['focal_px'] == rs['odometry.focal_length_px'] == pytest.approx(200.0 / 2.5)
+    bad = tmp_path / 'pinhole.yaml'
+    text = (ROOT / 'config/shapes_rotation.yaml').read_text()
+    bad.write_text(text.replace('rectify: equidistant', 'rectify: pinhole', 1))
+    with pytest.raises(ConfigError, match='needs equidistant-rectified frames'):
+        dataset_overrides(dataset, bad, imu=False)             # as hrn-vo run refuses it
+
+
+def test_load_configs_defaults_overrides_and_errors(tmp_path: Path) -> None:
+    pcfg, rcfg = load_configs(None, resonator={'cleanup.gamma': 0.7, 'map': {'mu1': 0.5}})
+    assert rcfg.cleanup.gamma == 0.7 and rcfg.map.mu1 == 0.5 and pcfg == PacketizerConfig()
+    assert to_dict(load_configs(None)[1]) == to_dict(ResonatorConfig())
+    f = tmp_path / 'c.yaml'
+    f.write_text('resonator_node: [1, 2]\n')
+    with pytest.raises(ConfigError, match='ros__parameters'):
+        load_configs(f)
+    f.write_text(': : :\n  - [')
+    with pytest.raises(ConfigError, match='not valid YAML'):
+        load_configs(f)
+    f.write_text('resonator_node:\n  ros__parameters:\n    odom_frame_id: odom\n'
+                 '    map: {mu1: 0.3}\n')
+    assert load_configs(f)[1].map.mu1 == 0.3       # node-only keys are skipped

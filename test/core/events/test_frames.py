@@ -1,0 +1,215 @@
+"""Event frames: downsampling formula, binary thresholds, packet times, streaming = batch."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.camera import distort_points, rectified_pixels, undistort_points
+from hrn_vo_ros.core.events.frames import (
+    CalibrationConfig,
+    downsample_lut,
+    frames_from_events,
+    Packetizer,
+    PacketizerConfig,
+    rectify_lut,
+    with_calibration,
+)
+from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.errors import ConfigError, DatasetError
+
+
+def random_events(rng: np.random.Generator, n: int, w: int = 240, h: int = 180) -> EventArray:
+    t = np.cumsum(rng.integers(0, 5000, n)).astype(np.int64) + 10**9
+    return EventArray.from_arrays(t, rng.integers(0, w, n), rng.integers(0, h, n),
+                                  rng.integers(0, 2, n))
+
+
+@pytest.mark.parametrize(('sensor', 'f', 'out'), [((240, 180), 2.5, (96, 72)),
+                                                  ((640, 480), 10.0, (64, 48)),
+                                                  ((346, 260), 2.5, (139, 104))])
+def test_output_size_and_every_pixel_lands_inside(sensor: tuple[int, int], f: float,
+                                                  out: tuple[int, int]) -> None:
+    cfg = PacketizerConfig(sensor_width=sensor[0], sensor_height=sensor[1], downsample=f)
+    assert (cfg.width, cfg.height) == out
+    lx = downsample_lut(sensor[0], f)
+    assert lx.min() == 0 and lx.max() == out[0] - 1
+    assert np.all(np.diff(lx) >= 0)
+
+
+def test_downsampling_is_centre_aligned_division_and_rounding() -> None:
+    lx = downsample_lut(240, 2.5)
+    x = np.arange(240)
+    np.testing.assert_array_equal(lx, np.floor((x + 0.5) / 2.5).astype(int))
+    # 2.5 sensor pixels per bin: bins alternately take 2 and 3 pixels (or 3 and 2).
+    counts = np.bincount(lx)
+    assert set(counts.tolist()) == {2, 3} and counts.sum() == 240
+    assert downsample_lut(640, 10.0).tolist() == (np.arange(640) // 10).tolist()
+
+
+def test_frame_content_time_and_thresholds() -> None:
+    cfg = PacketizerConfig(events_per_frame=4, sensor_width=20, sensor_height=10, downsample=2.0)
+    ev = EventArray.from_arrays(np.array([100, 200, 300, 401]), np.array([0, 1, 5, 19]),
+                                np.array([0, 0, 3, 9]), np.array([1, 0, 1, 1]))
+    t, img = frames_from_events(ev, cfg)
+    assert t.tolist() == [250] and img.shape == (1, 5, 10) and img.dtype == np.uint8
+    expect = np.zeros((5, 10), np.uint8)
+    expect[0, 0] = expect[1, 2] = expect[4, 9] = 1
+    np.testing.assert_array_equal(img[0], expect)
+    cfg2 = PacketizerConfig(events_per_frame=4, sensor_width=20, sensor_height=10,
+                            downsample=2.0, min_events_per_pixel=2)
+    _, img2 = frames_from_events(ev, cfg2)
+    only = np.zeros((5, 10), np.uint8)
+    only[0, 0] = 1            # (0,0) and (1,0) both fall into pixel (0, 0): 2 events
+    np.testing.assert_array_equal(img2[0], only)
+
+
+def test_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
+    cfg = PacketizerConfig(events_per_frame=1000)
+    ev = random_events(rng, 25_500)
+    t_ref, img_ref = frames_from_events(ev, cfg)
+    assert len(t_ref) == 25
+    pk = Packetizer(cfg)
+    cuts = np.sort(rng.choice(np.arange(1, len(ev)), 60, replace=False))
+    cuts = np.concatenate([[0], cuts[:20], [cuts[20]] * 3, cuts[21:], [len(ev)]])  # empty pushes
+    frames = []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        frames += pk.push(ev[a:b])
+    assert [f.t_ns for f in frames] == t_ref.tolist()
+    np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
+    assert pk.pending == 500
+    f0 = frames[0]
+    assert (f0.t_first_ns, f0.t_last_ns, f0.n_events) == (int(ev.t[0]), int(ev.t[999]), 1000)
+    # One push spanning many frames gives the same result.
+    assert [f.t_ns for f in Packetizer(cfg).push(ev)] == t_ref.tolist()
+
+
+def test_bad_inputs_raise_with_actionable_messages(rng: np.random.Generator) -> None:
+    pk = Packetizer(PacketizerConfig(sensor_width=240, sensor_height=180))
+    bad = EventArray.from_arrays(np.array([1, 2]), np.array([3, 240]), np.array([0, 0]),
+                                 np.array([0, 0]))
+    with pytest.raises(DatasetError, match='outside the 240x180 sensor'):
+        pk.push(bad)
+    pk.push(EventArray.from_arrays(np.array([50]), np.array([1]), np.array([1]), np.array([0])))
+    with pytest.raises(DatasetError, match='back in time'):
+        pk.push(EventArray.from_arrays(np.array([40]), np.array([1]), np.array([1]),
+                                       np.array([0])))
+    with pytest.raises(ConfigError, match='events_per_frame'):
+        PacketizerConfig(events_per_frame=0)
+    with pytest.raises(ConfigError, match='downsample'):
+        PacketizerConfig(downsample=0.5)
+
+
+def test_packetizing_rate_is_far_above_real_time(rng: np.random.Generator) -> None:
+    """A loose in-suite bound (the benchmark measures the 20 M events/s target)."""
+    ev = random_events(rng, 2_000_000)
+    pk = Packetizer(PacketizerConfig())
+    t0 = time.perf_counter()
+    for i in range(0, len(ev), 100_000):
+        pk.push(ev[i:i + 100_000])
+    rate = len(ev) / (time.perf_counter() - t0)
+    assert rate > 3e6
+
+
+# ------------------------------------------------------------------------------------------
+# Rectification
+
+
+DAVIS = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.001, -0.002, 0.0))
+
+
+def _rectified(mode: str, calib: CameraCalibration = DAVIS, **kw: object) -> PacketizerConfig:
+    return with_calibration(PacketizerConfig(rectify=mode, **kw), calib)  # type: ignore[arg-type]
+
+
+def test_undistort_inverts_distort() -> None:
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-0.6, 0.6, 200), rng.uniform(-0.45, 0.45, 200)
+    u, v = distort_points(199.1, 198.8, 121.3, 89.6, DAVIS.dist, x, y)
+    x2, y2 = undistort_points(199.1, 198.8, 121.3, 89.6, DAVIS.dist, u, v)
+    np.testing.assert_allclose(x2, x, atol=1e-9)
+    np.testing.assert_allclose(y2, y, atol=1e-9)
+
+
+def test_equidistant_radius_is_focal_times_ray_angle() -> None:
+    xr, yr = rectified_pixels('equidistant', *DAVIS_ARGS)
+    # the ray of every sensor pixel (undistorted, normalised) and its angle from the axis
+    yy, xx = np.mgrid[0:180, 0:240].astype(float)
+    x, y = undistort_points(199.1, 198.8, 121.3, 89.6, DAVIS.dist, xx, yy)
+    theta = np.arctan(np.hypot(x, y))
+    radius = np.hypot((xr - 119.5) / 199.1, (yr - 89.5) / 198.8)
+    np.testing.assert_allclose(radius, theta, atol=1e-9)
+    # the direction about the centre is the ray's direction (a roll is an image rotation)
+    np.testing.assert_allclose(np.arctan2((yr - 89.5) / 198.8, (xr - 119.5) / 199.1),
+                               np.arctan2(y, x), atol=1e-9)
+    # pinhole keeps the ray's tangent instead
+    xp, yp = rectified_pixels('pinhole', *DAVIS_ARGS)
+    np.testing.assert_allclose((xp - 119.5) / 199.1, x, atol=1e-9)
+    assert np.hypot(xp - 119.5, yp - 89.5).max() > np.hypot(xr - 119.5, yr - 89.5).max() + 5
+
+
+DAVIS_ARGS = (240, 180, 199.1, 198.8, 121.3, 89.6, DAVIS.dist)
+
+
+def test_rectify_with_an_ideal_centred_camera_changes_nothing(rng: np.random.Generator) -> None:
+    ideal = CameraCalibration(240, 180, 200.0, 200.0, 119.5, 89.5)
+    ev = random_events(rng, 20_000)
+    t_ref, img_ref = frames_from_events(ev, PacketizerConfig())
+    t, img = frames_from_events(ev, _rectified('pinhole', ideal))
+    assert t.tolist() == t_ref.tolist()
+    np.testing.assert_array_equal(img, img_ref)
+
+
+def test_rectified_event_lands_where_the_lookup_says() -> None:
+    cfg = _rectified('equidistant', events_per_frame=1)
+    xr, yr = rectified_pixels('equidistant', *DAVIS_ARGS)
+    for x, y in [(0, 0), (239, 179), (121, 90), (17, 150)]:
+        ev = EventArray.from_arrays(np.array([5]), np.array([x]), np.array([y]), np.array([1]))
+        _, img = frames_from_events(ev, cfg)
+        (v,), (u,) = np.nonzero(img[0])
+        assert (u, v) == (int((xr[y, x] + 0.5) // 2.5), int((yr[y, x] + 0.5) // 2.5))
+    # the barrel-distorted corner moves outwards under pinhole rectification
+    xp, _ = rectified_pixels('pinhole', *DAVIS_ARGS)
+    assert xp[0, 0] < -5.0 < xr[0, 0]
+
+
+def test_events_rectified_outside_the_frame_are_counted_not_binned(
+        rng: np.random.Generator) -> None:
+    cfg = _rectified('pinhole', events_per_frame=1000)
+    lut = rectify_lut(cfg)
+    outside = np.flatnonzero(lut < 0)
+    assert 0.02 < len(outside) / lut.size < 0.2       # the barrel-distorted corners
+    ev = random_events(rng, 30_000)
+    n_out = int(np.isin(ev.y.astype(int) * 240 + ev.x, outside).sum())
+    pk = Packetizer(cfg)
+    frames = []
+    for i in range(0, len(ev), 7_000):
+        frames += pk.push(ev[i:i + 7_000])
+    assert pk.outside == n_out
+    assert len(frames) * 1000 + pk.pending == len(ev) - n_out
+    t_ref, img_ref = frames_from_events(ev, cfg)     # streaming = batch with rectification
+    assert [f.t_ns for f in frames] == t_ref.tolist()
+    np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
+    # equidistant keeps every DAVIS pixel in the frame
+    assert (rectify_lut(_rectified('equidistant')) >= 0).all()
+
+
+def test_rectification_needs_a_matching_calibration() -> None:
+    with pytest.raises(ConfigError, match='needs the camera calibration'):
+        Packetizer(PacketizerConfig(rectify='equidistant'))
+    with pytest.raises(ConfigError, match='rectify'):
+        PacketizerConfig(rectify='fisheye')
+    with pytest.raises(DatasetError, match='346x260 sensor'):
+        _rectified('pinhole', CameraCalibration(346, 260, 200.0, 200.0, 173.0, 130.0))
+    with pytest.raises(ConfigError, match='5 plumb-bob'):
+        CalibrationConfig(fx=1.0, fy=1.0, dist=(0.1,))
+    with pytest.raises(ConfigError, match='both'):
+        CalibrationConfig(fx=1.0)
+    # explicit calib wins over the dataset's; no rectification ignores the calibration
+    own = PacketizerConfig(rectify='pinhole', calib=CalibrationConfig(fx=150.0, fy=150.0))
+    assert with_calibration(own, DAVIS) is own
+    assert with_calibration(PacketizerConfig(), DAVIS) == PacketizerConfig()
+    assert _rectified('equidistant').calib.cx == 121.3

@@ -1,0 +1,380 @@
+"""The HRN recovers known motions from synthetic event frames; fast = dense; IMU; bad inputs."""
+
+from __future__ import annotations
+
+from hrn_synth import event_frame, random_scene, trajectory
+import numpy as np
+import pytest
+
+from hrn_vo_ros.core.configbase import from_dict
+from hrn_vo_ros.core.hrn import fhrr
+from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend
+from hrn_vo_ros.core.hrn.network import (
+    blend_state,
+    cleanup_weights,
+    CleanupConfig,
+    HRN,
+    population_readout,
+    refine_exponent,
+    ResonatorConfig,
+    state_gamma,
+)
+from hrn_vo_ros.core.spiking.config import SpikingConfig
+from hrn_vo_ros.errors import ConfigError, TrackingError
+
+FOCAL = 80.0
+
+
+def assert_close(got: np.ndarray, want: tuple[float, ...] | list[float],
+                 tol: tuple[float, ...]) -> None:
+    err = np.abs(np.asarray(got) - np.asarray(want))
+    assert np.all(err <= np.asarray(tol)), f'got {got}, want {want}, tolerance {tol}'
+
+
+def make(over: dict | None = None, seed: int = 1) -> HRN:
+    return HRN(from_dict(ResonatorConfig, over or {}), rng=np.random.default_rng(seed))
+
+
+def gyro_between(p0: np.ndarray, p1: np.ndarray, f: float = FOCAL) -> np.ndarray:
+    """The camera rotation (camera axes) that moves pose p0 to p1 in the synthetic model."""
+    dpx, dpy = p1[0] - p0[0], p1[1] - p0[1]
+    alpha = -p0[2]                                   # content angle = -roll
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    dix, diy = -(ca * dpx - sa * dpy), -(sa * dpx + ca * dpy)   # image displacement Rot(α)(-Δp)
+    return np.array([diy / f, -dix / f, p1[2] - p0[2]])
+
+
+def track(hrn: HRN, traj: np.ndarray, seed: int = 0, imu: bool = False,
+          w: int = 96, h: int = 72) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    scene = random_scene(rng)
+    out = []
+    for i, pose in enumerate(traj):
+        g = gyro_between(traj[i - 1], pose) if imu and i else None
+        e = hrn.step(event_frame(scene, tuple(pose), rng, width=w, height=h), i * 5_000_000,
+                     gyro_delta=g)
+        out.append((e.h, e.v, e.r, e.z))
+    return np.array(out)
+
+
+@pytest.mark.parametrize(('pose', 'tol'), [((4.0, -3.0, 0.0, 0.0), (0.5, 0.5, 0.02)),
+                                           ((0.0, 0.0, 0.35, 0.0), (0.5, 0.5, 0.02)),
+                                           ((-3.0, 2.0, -0.12, 0.0), (0.6, 0.6, 0.02))])
+def test_recovers_a_fixed_shift_roll_or_both(pose: tuple[float, ...],
+                                             tol: tuple[float, ...]) -> None:
+    """Map = first frame at pose 0; then a view at a known pose: the readout is that pose."""
+    traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [pose] * 40)
+    est = track(make({'map': {'learn': False}}), traj)
+    assert_close(est[-1, :3], pose[:3], tol)
+
+
+def test_tracks_continuous_shift_and_roll_with_map_learning() -> None:
+    traj = trajectory(400, amp_xy=12.0, amp_roll=0.5, period=250.0)
+    est = track(make({'cleanup': {'gamma': 0.6}, 'map': {'mu1': 0.99, 'mu2': 0.002}}), traj)
+    err = np.abs(est[30:, :3] - traj[30:, :3])
+    med = np.median(err, axis=0)
+    assert med[0] < 1.0 and med[1] < 1.0 and med[2] < np.deg2rad(2.0), med
+
+
+def test_roll_is_unwrapped_beyond_half_a_turn() -> None:
+    n = 160
+    traj = np.zeros((n + 30, 4))
+    traj[:n, 2] = np.linspace(0.0, 4.0, n)          # > π: one and a bit half-turns, then hold
+    traj[n:, 2] = 4.0
+    est = track(make({'map': {'learn': False}}), traj)
+    np.testing.assert_allclose(est[-1, 2], 4.0, atol=0.05)
+    assert np.all(np.abs(np.diff(est[20:, 2])) < 0.2)
+
+
+def test_scale_factor_recovers_zoom() -> None:
+    traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [(2.0, -1.0, 0.1, 0.15)] * 40)
+    est = track(make({'scale': {'enabled': True}, 'map': {'learn': False}}), traj)
+    assert_close(est[-1], [2.0, -1.0, 0.1, 0.15], (0.6, 0.6, 0.03, 0.03))
+
+
+def test_velocity_prediction_tracks_faster_motion_more_precisely() -> None:
+    """The constant-velocity prediction (cleanup.predict_velocity) moves the states ahead by
+    the smoothed readout change per frame: on fast synthetic motion the readout lags less."""
+    traj = trajectory(200, amp_xy=10.0, amp_roll=0.4, period=60.0)
+    base = {'cleanup': {'gamma': 0.9, 'iterations_per_frame': 1}, 'map': {'learn': False}}
+    plain = track(make(base), traj, seed=1)
+    pred = track(make({**base, 'cleanup': {**base['cleanup'], 'predict_velocity': 1.0}}), traj,
+                 seed=1)
+    e_plain = np.median(np.abs(plain[20:, :3] - traj[20:, :3]), axis=0)
+    e_pred = np.median(np.abs(pred[20:, :3] - traj[20:, :3]), axis=0)
+    assert np.all(e_pred < 0.7 * e_plain), (e_plain, e_pred)
+    assert e_pred[0] < 0.3 and e_pred[1] < 0.3 and e_pred[2] < np.deg2rad(1.0), e_pred
+
+
+def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
+    """With γ = 0 the cleanup does not move the states, so only the prediction does."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    frame = event_frame(scene, (0, 0, 0, 0), rng)
+    hrn = make({'cleanup': {'gamma': 1.0}, 'focal_px': FOCAL})
+    for i in range(20):
+        e0 = hrn.step(frame, i)
+    hrn2 = HRN(from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.0},
+                                           'focal_px': FOCAL}),
+               rng=np.random.default_rng(1))
+    hrn2._engine, hrn2._started, hrn2._point = hrn._engine, True, hrn._point
+    hrn2._engine.cfg = hrn2.cfg
+    e1 = hrn2.step(frame, 99, gyro_delta=np.array([-0.02, 0.05, 0.1]))
+    assert e1.h - e0.h == pytest.approx(FOCAL * 0.05, abs=0.15)
+    assert e1.v - e0.v == pytest.approx(FOCAL * 0.02, abs=0.15)
+    assert e1.r - e0.r == pytest.approx(0.1, abs=0.01)
+
+
+def test_imu_fusion_helps_on_fast_motion() -> None:
+    """Large inter-frame motion (about 3 px and 3 deg per frame): the gyro keeps the lock."""
+    traj = trajectory(240, amp_xy=18.0, amp_roll=0.6, period=40.0)
+    base = {'cleanup': {'gamma': 0.5}, 'map': {'learn': False}, 'focal_px': FOCAL}
+    plain = track(make(base), traj)
+    fused = track(make(base), traj, imu=True)
+    e_plain = np.median(np.abs(plain[20:, :3] - traj[20:, :3]), axis=0)
+    e_fused = np.median(np.abs(fused[20:, :3] - traj[20:, :3]), axis=0)
+    assert e_fused[2] < 0.5 * e_plain[2] and e_fused[0] < e_plain[0], (e_plain, e_fused)
+    assert e_fused[2] < np.deg2rad(2.0) and e_fused[0] < 1.0
+
+
+@pytest.mark.parametrize(('scale', 'ring_weight', 'refine'),
+                         [(False, 0.0, False), (True, 0.0, False), (False, 1.0, False),
+                          (True, 1.0, False), (True, 1.0, True), (False, 0.5, True)])
+def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refine: bool) -> None:
+    """Same equations, same random draws: readouts agree within 1e-4 relative (32x24).
+
+    Without scale the fast engine runs its direct (θ-spectrum) form; the last case is the
+    shipped shapes_rotation switches in that form."""
+    base = {'width': 32, 'height': 24,
+            'logpolar': {'n_theta': 32, 'n_rho': 16, 'ring_weight': ring_weight},
+            'codebook': {'canvas_width': 36, 'canvas_height': 26},
+            'map': {'block_iterations': 10}, 'scale': {'enabled': scale},
+            'readout': {'refine': refine}}
+    if refine:      # and the other switches of the shipped configs
+        base['codebook'] = {**base['codebook'], 'kernel_sigma': 0.7}   # type: ignore[dict-item]
+        base['cleanup'] = {'predict_velocity': 1.0, 'iterations_per_frame': 2}
+        base['readout'] = {'refine': True, 'refine_input': 'h,v,z'}   # r refines on its state
+    fast = make(base, seed=3)
+    assert fast._engine._direct is not scale          # type: ignore[attr-defined]
+    dense = make({**base, 'path': 'dense'}, seed=3)
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng, size=100, n_shapes=40)
+    traj = trajectory(40, amp_xy=3.0, amp_roll=0.3, amp_zoom=0.1, period=40.0)
+    updated = 0
+    for i, pose in enumerate(traj):
+        frame = event_frame(scene, tuple(pose), rng, width=32, height=24)
+        a, b = fast.step(frame, i), dense.step(frame, i)
+        for k in fast.factors:
+            rel = np.abs(a.similarity[k] - b.similarity[k]).max() / np.abs(b.similarity[k]).max()
+            assert rel < 1e-4, (i, k, rel)
+        np.testing.assert_allclose([a.h, a.v, a.r, a.z], [b.h, b.v, b.r, b.z], rtol=1e-4,
+                                   atol=1e-6)
+        updated += a.map_updated
+    per_frame = fast.cfg.cleanup.iterations_per_frame      # blocked for 10 iterations
+    assert updated == 40 - 10 // per_frame
+    np.testing.assert_allclose(fast.map_image(), dense.map_image(), atol=1e-6)
+    np.testing.assert_allclose(fast.egocentric_map_image(), dense.egocentric_map_image(),
+                               atol=1e-6)
+
+
+def test_dense_path_with_random_codebooks_recovers_a_shift() -> None:
+    over = {'width': 32, 'height': 24, 'path': 'dense', 'logpolar': {'n_theta': 32, 'n_rho': 24},
+            'codebook': {'kind': 'random', 'dim': 1024}, 'map': {'learn': False}}
+    traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [(2.0, -1.5, 0.0, 0.0)] * 40)
+    rng = np.random.default_rng(5)
+    scene = random_scene(rng, size=100, n_shapes=40)
+    hrn = make(over, seed=2)
+    for i, pose in enumerate(traj):
+        e = hrn.step(event_frame(scene, tuple(pose), rng, width=32, height=24), i)
+    assert abs(e.h - 2.0) < 0.7 and abs(e.v + 1.5) < 0.7 and abs(e.r) < 0.1
+
+
+def test_map_learning_switch_block_and_images() -> None:
+    traj = trajectory(30, amp_xy=2.0)
+    hrn = make({'map': {'block_iterations': 10}})
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    flags = [hrn.step(event_frame(scene, tuple(p), rng), i).map_updated
+             for i, p in enumerate(traj)]
+    assert flags == [False] * 10 + [True] * 20
+    assert hrn.map_image().shape == (72, 96) and hrn.egocentric_map_image().shape == (72, 96)
+    frozen = make({'map': {'learn': False}})
+    m0 = None
+    for i, p in enumerate(traj):
+        e = frozen.step(event_frame(scene, tuple(p), rng), i)
+        m0 = frozen.map_image() if m0 is None else m0
+    assert not e.map_updated
+    np.testing.assert_array_equal(frozen.map_image(), m0)
+    assert set(e.similarity) == {'h', 'v', 'r'} and e.similarity['r'].shape == (96,)
+    assert hrn.readout_axis('r').shape == (96,) and set(e.confidence) == {'h', 'v', 'r'}
+
+
+def test_empty_frames_repeat_the_pose_without_iterating() -> None:
+    hrn = make()
+    e = hrn.step(np.zeros((72, 96), np.uint8), 5)
+    assert not e.valid and e.iteration == 0
+    rng = np.random.default_rng(0)
+    frame = event_frame(random_scene(rng), (0, 0, 0, 0), rng)
+    e1 = hrn.step(frame, 6)
+    e2 = hrn.step(np.zeros((72, 96), np.uint8), 7)
+    assert e1.valid and not e2.valid and (e2.h, e2.r, e2.iteration) == (e1.h, e1.r, 1)
+
+
+@pytest.mark.parametrize('path', ['fast', 'dense', 'spiking'])
+def test_a_blank_cleanup_input_keeps_the_states(path: str) -> None:
+    """A zero input (nothing to unbind) must not shrink the states: zero h and v are a fixed
+    point of the resonator, so a shrinking state froze the network for good."""
+    over = {'path': 'fast'} if path != 'dense' else {
+        'path': 'dense', 'width': 24, 'height': 18, 'logpolar': {'n_theta': 24, 'n_rho': 18}}
+    if path == 'spiking':
+        hrn = make_backend(from_dict(ResonatorConfig, over), rng=np.random.default_rng(1),
+                           backend=BackendConfig('spiking', SpikingConfig()))
+    else:
+        hrn = make(over)
+    rng = np.random.default_rng(0)
+    w, h = hrn.cfg.width, hrn.cfg.height
+    hrn.step(event_frame(random_scene(rng), (0, 0, 0, 0), rng, width=w, height=h), 0)
+    eng = hrn._engine
+    before = {k: x.copy() for k, x in eng.state.items()}
+    S = eng.encode(np.zeros((hrn.geometry.canvas_height, hrn.geometry.canvas_width)))
+    for _ in range(3):
+        eng.iterate(S)
+    for k, x in eng.state.items():
+        np.testing.assert_allclose(x, before[k], atol=1e-12, err_msg=k)
+    # and the update still moves a state when the cleanup carries something
+    x = np.exp(1j * np.linspace(0, 1, 8))
+    cleaned = np.exp(-1j * np.linspace(0, 1, 8))
+    np.testing.assert_allclose(blend_state(x, cleaned.copy(), 0.9), 0.1 * x + 0.9 * cleaned)
+    two = np.stack([cleaned, np.zeros(8, complex)])
+    np.testing.assert_allclose(blend_state(np.stack([x, x]), two, 0.9),
+                               np.stack([0.1 * x + 0.9 * cleaned, x]))
+
+
+def test_noise_frames_above_max_fill_are_skipped() -> None:
+    """A still camera fills fixed-count packets with noise: such frames must not become the map."""
+    rng = np.random.default_rng(0)
+    noise = (rng.random((72, 96)) < 0.45).astype(np.uint8)
+    hrn = make()
+    e = hrn.step(noise, 0)
+    assert not e.valid and e.iteration == 0
+    frame = event_frame(random_scene(rng), (0, 0, 0, 0), rng)
+    assert hrn.step(frame, 1).valid
+    assert make({'max_fill': 1.0}).step(noise, 0).valid
+
+
+def test_bad_inputs_and_configs() -> None:
+    hrn = make()
+    with pytest.raises(TrackingError, match=r'expected \(72, 96\)'):
+        hrn.step(np.zeros((48, 64)), 0)
+    with pytest.raises(TrackingError, match='non-finite'):
+        hrn.step(np.full((72, 96), np.nan), 0)
+    rng = np.random.default_rng(0)
+    frame = event_frame(random_scene(rng), (0, 0, 0, 0), rng)
+    hrn.step(frame, 0)
+    with pytest.raises(ConfigError, match='focal_px'):
+        hrn.step(frame, 1, gyro_delta=np.zeros(3))
+    with pytest.raises(ConfigError, match='focal_px'):
+        make({'imu': {'enabled': True}})             # refused at construction
+    imu_hrn = make({'focal_px': 80.0})
+    imu_hrn.step(frame, 0)
+    with pytest.raises(TrackingError, match='gyro_delta'):
+        imu_hrn.step(frame, 1, gyro_delta=np.zeros(2))
+    with pytest.raises(ConfigError, match='path fast needs'):
+        ResonatorConfig(codebook=from_dict(type(ResonatorConfig().codebook), {'kind': 'random'}))
+    with pytest.raises(ConfigError, match='mu1 \\+ mu2'):
+        from_dict(ResonatorConfig, {'map': {'mu1': 0.9, 'mu2': 0.2}})
+    with pytest.raises(ConfigError, match='nonlinearity'):
+        from_dict(ResonatorConfig, {'cleanup': {'nonlinearity': 'tanh'}})
+    with pytest.raises(ConfigError, match='smaller than'):
+        from_dict(ResonatorConfig, {'codebook': {'canvas_width': 50}})
+    with pytest.raises(ConfigError, match='unknown'):
+        from_dict(ResonatorConfig, {'map': {'mu3': 0.1}})
+    with pytest.raises(ConfigError, match='camera_from_imu'):
+        from_dict(ResonatorConfig, {'imu': {'camera_from_imu': [1.0, 0.0]}})
+    with pytest.raises(ConfigError, match='refine_input'):
+        from_dict(ResonatorConfig, {'readout': {'refine_input': 'h,x'}})
+
+
+def test_cleanup_nonlinearities_and_population_readout() -> None:
+    c = np.array([-1.0, 0.5, 2.0, 1.0])
+    np.testing.assert_allclose(cleanup_weights(c, CleanupConfig(nonlinearity='identity')), c)
+    np.testing.assert_allclose(cleanup_weights(c, CleanupConfig(nonlinearity='relu')),
+                               [0, 0.5, 2, 1])
+    np.testing.assert_allclose(cleanup_weights(c, CleanupConfig(nonlinearity='relu_k', k=2)),
+                               [0, 0.25, 4, 1])
+    e = cleanup_weights(c, CleanupConfig(nonlinearity='exp', beta=2.0))
+    np.testing.assert_allclose(e, np.exp(2.0 * (c / 2.0 - 1.0)))
+    np.testing.assert_allclose(cleanup_weights(np.full(3, 1e-20), CleanupConfig(), 1.0), 0.0)
+    sim = np.zeros(20)
+    sim[[18, 19, 0, 1]] = [0.5, 1.0, 1.0, 0.5]          # peak straddles the wrap
+    idx, spread, peak = population_readout(sim, 5, True)
+    assert idx == pytest.approx(-0.5) and peak == 1.0 and spread > 0
+    idx2, _, _ = population_readout(sim, 5, False)
+    assert 0.0 <= idx2 < 20
+
+
+def test_refine_finds_fractional_exponents_and_removes_pixel_locking() -> None:
+    """The continuous readout of seed^a is a; on sub-pixel motion it beats the population
+    vector of the sharpened state, which is pulled towards whole pixels."""
+    phases = fhrr.dft_phases(64)
+    for a in (3.37, -10.5, 0.02):
+        x = fhrr.power(phases, a)
+        assert abs(refine_exponent(x, phases, round(a), 1.0) - a) < 1e-3
+    traj = np.zeros((120, 4))
+    traj[:, 0] = np.linspace(0.0, 6.0, 120)           # 0.05 px per frame: every fraction
+    base = {'cleanup': {'beta': 20.0}, 'map': {'learn': False}}
+    plain = track(make(base), traj)
+    fine = track(make({**base, 'readout': {'refine': True}}), traj)
+    e_plain = np.median(np.abs(plain[10:, 0] - traj[10:, 0]))
+    e_fine = np.median(np.abs(fine[10:, 0] - traj[10:, 0]))
+    assert e_fine < 0.85 * e_plain, (e_plain, e_fine)
+
+
+def test_imu_gamma_replaces_cleanup_gamma_only_with_the_imu_on() -> None:
+    cfg = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'gamma': 0.3}})
+    assert state_gamma(cfg) == 0.9
+    on = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9},
+                                     'imu': {'gamma': 0.3, 'enabled': True}})
+    assert state_gamma(on) == 0.3
+    unset = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'enabled': True}})
+    assert state_gamma(unset) == 0.9
+
+
+def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
+    """The first map is the encoded first frame: one pixel on gives a Gaussian of that std."""
+    hrn = make({'width': 32, 'height': 24, 'logpolar': {'n_theta': 32, 'n_rho': 16},
+                'codebook': {'kernel_sigma': 1.5}})
+    frame = np.zeros((24, 32), np.uint8)
+    frame[10, 20] = 1
+    hrn.step(frame, 0)
+    img = hrn.map_image()
+    assert img.sum() == pytest.approx(1.0, abs=1e-6)    # the fast engine's map is single
+    yy, xx = np.mgrid[0:24, 0:32]
+    assert np.sum(img * xx) == pytest.approx(20.0, abs=1e-4)
+    assert np.sum(img * yy) == pytest.approx(10.0, abs=1e-4)
+    assert np.sqrt(np.sum(img * (xx - 20.0) ** 2)) == pytest.approx(1.5, abs=0.01)
+
+
+@pytest.mark.parametrize('gate', [0.0, 5.0])
+def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float) -> None:
+    """One frame from a far pose (a glitch) while the gyro says 'still': with the gate the
+    readout keeps the prediction and the map is not updated; without it the readout jumps."""
+    rng = np.random.default_rng(4)
+    scene = random_scene(rng)
+    hrn = make({'map': {'block_iterations': 0},
+                'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
+                'focal_px': FOCAL, 'imu': {'gate_deg': gate}})
+    still = np.zeros(3)
+    for i in range(30):
+        hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i, gyro_delta=still)
+    glitch = hrn.step(event_frame(scene, (3.0, -2.0, 0.15, 0.0), rng), 30, gyro_delta=still)
+    jumped = max(abs(glitch.h), abs(glitch.v)) > 1.5 or abs(glitch.r) > 0.1
+    if gate:
+        assert hrn.rejected_frames == 1 and not glitch.map_updated
+        assert abs(glitch.h) < 0.5 and abs(glitch.v) < 0.5 and abs(glitch.r) < 0.02
+        assert hrn.innovation_deg > gate
+    else:
+        assert jumped and glitch.map_updated and hrn.rejected_frames == 0
+    after = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 31, gyro_delta=still)
+    if gate:
+        assert abs(after.h) < 0.5 and abs(after.r) < 0.02

@@ -1,0 +1,119 @@
+"""ROS 2 bag helpers: typestore, CDR of EventPacket, crash-safe writer, refusing half bags."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.interfaces import QosReliability
+
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.errors import BagError
+from hrn_vo_ros.io import bags, eventpacket
+
+EVENT_PACKET_HASH = 'RIHS01_d6fa176260b1f37e5a40845305315e150a0f18191241eb64f407442aa29844aa'
+DVS_HASH = 'RIHS01_0ea4aa5f4670adab1336550158b2e3c9bf60fe515a284c4215ed605bd559c995'
+
+
+def test_typestore_has_official_hashes() -> None:
+    ts = bags.typestore()
+    assert ts.hash_rihs01(bags.EVENT_PACKET) == EVENT_PACKET_HASH
+    assert ts.hash_rihs01(bags.DVS_EVENT_ARRAY) == DVS_HASH
+
+
+@pytest.mark.parametrize('frame_id', ['', 'x', 'event_camera', 'abcdefgh'])
+def test_event_packet_cdr_is_byte_identical_to_rosbags(frame_id: str,
+                                                       rng: np.random.Generator) -> None:
+    ev = EventArray.from_arrays(np.sort(rng.integers(0, 10**6, 37)), rng.integers(0, 240, 37),
+                                rng.integers(0, 180, 37), rng.integers(0, 2, 37))
+    time_base, payload = eventpacket.encode_mono(ev)
+    ts = bags.typestore()
+    T = ts.types
+    msg = T[bags.EVENT_PACKET](
+        header=T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
+            sec=12, nanosec=345), frame_id=frame_id), height=180, width=240, seq=7,
+        time_base=time_base, encoding='mono', is_bigendian=False, events=payload)
+    ours = bags.event_packet_cdr(stamp_ns=12_000_000_345, frame_id=frame_id, height=180,
+                                 width=240, seq=7, time_base=time_base, encoding='mono',
+                                 is_bigendian=False, payload=payload)
+    assert ours == bytes(ts.serialize_cdr(msg, bags.EVENT_PACKET))
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_writer_records_qos_and_renames_when_done(tmp_path: Path, storage: bags.Storage) -> None:
+    dst = tmp_path / 'bag'
+    with bags.BagWriter(dst, storage=storage) as w:
+        conn = w.add_topic('/event_camera/events', bags.EVENT_PACKET, bags.EVENTS_QOS)
+        raw = bags.event_packet_cdr(stamp_ns=1, frame_id='f', height=1, width=1, seq=0,
+                                    time_base=1, encoding='mono', is_bigendian=False,
+                                    payload=b'')
+        w.write(conn, 5, raw)
+        assert not dst.exists() and (tmp_path / 'bag.partial').is_dir()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['bag']
+    with bags.open_bag(dst) as reader:
+        (c,) = reader.connections
+        assert bags.qos_profiles(c)[0].reliability == QosReliability.BEST_EFFORT
+        assert [(m.topic, m.t_ns) for m in bags.iter_messages(reader)] == \
+            [('/event_camera/events', 5)]
+    with pytest.raises(BagError, match='exists already'):
+        bags.BagWriter(dst)
+
+
+def test_interrupted_write_leaves_nothing(tmp_path: Path) -> None:
+    dst = tmp_path / 'bag'
+    with pytest.raises(KeyboardInterrupt), bags.BagWriter(dst) as w:
+        w.add_topic('/x', bags.EVENT_PACKET, bags.EVENTS_QOS)
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_readers_refuse_partial_missing_and_corrupt_bags(tmp_path: Path) -> None:
+    half = tmp_path / 'a.partial' / 'a'
+    half.mkdir(parents=True)
+    with pytest.raises(BagError, match='unfinished'), bags.open_bag(half):
+        pass
+    with pytest.raises(BagError, match='does not exist'), bags.open_bag(tmp_path / 'nothing'):
+        pass
+    (tmp_path / 'empty').mkdir()
+    with pytest.raises(BagError, match='metadata.yaml'), bags.open_bag(tmp_path / 'empty'):
+        pass
+    dst = tmp_path / 'bag'
+    with bags.BagWriter(dst) as w:
+        conn = w.add_topic('/imu', 'sensor_msgs/msg/Imu', bags.SENSOR_QOS)
+        for i in range(100):
+            w.write(conn, i, bytes(400))
+    (mcap,) = dst.glob('*.mcap')
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:len(data) // 2])
+    with pytest.raises(BagError), bags.open_bag(dst) as reader:
+        list(bags.iter_messages(reader))
+
+
+@pytest.mark.parametrize('frame_id', ['', 'imu', 'world', 'a_longer_frame'])
+def test_batch_imu_and_pose_cdr_are_byte_identical_to_rosbags(
+        frame_id: str, rng: np.random.Generator) -> None:
+    ts = bags.typestore()
+    T = ts.types
+    t = np.array([0, 1_500_000_001, 2**40 + 7])
+    acc, gyro = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+    pos, quat = rng.normal(size=(3, 3)), rng.normal(size=(3, 4))
+    imu = bags.imu_cdr_batch(t, acc, gyro, frame_id=frame_id)
+    poses = bags.pose_cdr_batch(t, pos, quat, frame_id=frame_id)
+    q_cov = np.zeros(9)
+    q_cov[0] = -1.0
+    for i in range(3):
+        header = T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
+            sec=int(t[i]) // 10**9, nanosec=int(t[i]) % 10**9), frame_id=frame_id)
+        V = T['geometry_msgs/msg/Vector3']
+        msg = T['sensor_msgs/msg/Imu'](
+            header=header, orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0,
+                                                                         w=1.0),
+            orientation_covariance=q_cov, angular_velocity=V(*gyro[i]),
+            angular_velocity_covariance=np.zeros(9), linear_acceleration=V(*acc[i]),
+            linear_acceleration_covariance=np.zeros(9))
+        assert imu[i] == bytes(ts.serialize_cdr(msg, 'sensor_msgs/msg/Imu'))
+        pose = T['geometry_msgs/msg/PoseStamped'](header=header, pose=T['geometry_msgs/msg/Pose'](
+            position=T['geometry_msgs/msg/Point'](*pos[i]),
+            orientation=T['geometry_msgs/msg/Quaternion'](*quat[i])))
+        assert poses[i] == bytes(ts.serialize_cdr(pose, 'geometry_msgs/msg/PoseStamped'))

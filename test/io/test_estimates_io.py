@@ -1,0 +1,123 @@
+"""Estimate CSV round trip and errors; ``hrn-vo evaluate`` end to end on a written dataset."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hrn_vo_ros.cli.main import main
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.sequence import CameraCalibration, Sequence, Trajectory
+from hrn_vo_ros.core.odometry.geometry import (
+    euler_ptr_to_matrix,
+    matrix_to_quat,
+    matrix_to_swing_twist,
+)
+from hrn_vo_ros.errors import DatasetError
+from hrn_vo_ros.io.ecd import write_sequence
+from hrn_vo_ros.io.estimates import read_estimates, write_estimates
+
+
+def test_round_trip_is_exact(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.integers(1, 10_000_000, 50)).astype(np.int64)
+    est = EstimateSeries(t, rng.normal(size=50), rng.normal(size=50), rng.normal(size=50),
+                         rng.normal(size=50))
+    back = read_estimates(write_estimates(tmp_path / 'e.csv', est))
+    np.testing.assert_array_equal(back.t, est.t)
+    for name in ('h', 'v', 'r', 'z'):
+        np.testing.assert_array_equal(getattr(back, name), getattr(est, name))
+    no_z = read_estimates(write_estimates(tmp_path / 'f.csv', EstimateSeries(t, est.h, est.v,
+                                                                             est.r)))
+    assert no_z.z is None
+
+
+@pytest.mark.parametrize('text, message, line', [
+    ('t,h,v\n0.1,1,2\n', 'lacks column', 1),
+    ('t,h,v,r\n0.1,1,2\n', 'columns, expected 4', 2),
+    ('t,h,v,r\n0.1,1,x,3\n', "'x' is not a number", 2),
+    ('t,h,v,r\n0.2,1,2,3\n0.1,1,2,3\n', 'increase', 3),
+    ('t,h,v,r\nabc,1,2,3\n', 'bad time', 2),
+    ('', 'empty', None),
+])
+def test_bad_files_name_file_and_line(tmp_path: Path, text: str, message: str,
+                                      line: int | None) -> None:
+    path = tmp_path / 'bad.csv'
+    path.write_text(text)
+    with pytest.raises(DatasetError, match=message) as info:
+        read_estimates(path)
+    assert info.value.line == line
+    assert str(path) in str(info.value)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(DatasetError, match='not found'):
+        read_estimates(tmp_path / 'nope.csv')
+
+
+def _dataset(tmp_path: Path) -> tuple[Path, Path]:
+    t = np.arange(0.0, 20.0, 1 / 200)
+    pan, tilt, roll = 0.3 * np.sin(0.5 * t), 0.2 * np.sin(0.8 * t + 1), 0.6 * np.sin(0.3 * t)
+    R = euler_ptr_to_matrix(pan, tilt, roll)
+    gt = Trajectory((t * 1e9).astype(np.int64), np.zeros((len(t), 3)), matrix_to_quat(R))
+    ev = EventArray.from_arrays(np.array([0, 1]), np.array([1, 2]), np.array([1, 2]),
+                                np.array([0, 1]))
+    seq = Sequence(ev, CameraCalibration(240, 180, 199.0, 199.0, 120.0, 90.0), None, gt)
+    ds = write_sequence(tmp_path / 'ds', seq)
+    te = np.arange(0.01, 19.99, 1 / 150)
+    Re = euler_ptr_to_matrix(np.interp(te, t, pan), np.interp(te, t, tilt),
+                             np.interp(te, t, roll))
+    p, q, r = matrix_to_swing_twist(np.swapaxes(Re[:1], 1, 2) @ Re)   # the default convention
+    est = EstimateSeries((te * 1e9).astype(np.int64), 80 * p, -80 * q, np.unwrap(r))
+    return ds, write_estimates(tmp_path / 'est.csv', est)
+
+
+def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    ds, est = _dataset(tmp_path)
+    png = tmp_path / 'plot.png'
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--plot', str(png)]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert any(line.startswith('median_angle_deg') for line in out)
+    result = json.loads(out[-1])
+    assert result['metrics']['median_angle_deg'] < 0.1
+    assert png.stat().st_size > 10_000
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
+                 '--calib', 'full']) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 1 and json.loads(lines[0])['calib'] == 'full'
+    # the same swing-twist estimate read as Euler angles misses the pan * tilt / 2 twist
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
+                 '--convention', 'euler']) == 0
+    euler = json.loads(capsys.readouterr().out.strip())
+    assert euler['calibration']['convention'] == 'euler'
+    assert euler['metrics']['median_angle_deg'] > 0.2
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
+                 '--roll-zero', '1.5']) == 0
+    assert json.loads(capsys.readouterr().out.strip())['calibration']['roll_zero_s'] == 1.5
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '3']) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert any(line.startswith('lag scan (median_angle_deg)') for line in out)
+    scan = json.loads(out[-1])['lag_scan']
+    assert scan['offsets_ms'] == [-3, -2, -1, 0, 1, 2, 3] and len(scan['values']) == 7
+    # a lag-free estimate: errors grow away from the protocol lag
+    assert abs(scan['best_offset_ms']) <= 1
+    assert scan['values'][3] < min(scan['values'][0], scan['values'][6])
+
+
+def test_evaluate_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    ds, est = _dataset(tmp_path)
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '-2']) == 2
+    assert '--lag-scan' in capsys.readouterr().err
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--roll-zero', '-1']) == 2
+    assert 'roll zeroing window' in capsys.readouterr().err
+    assert main(['evaluate', str(ds), str(tmp_path / 'missing.csv'), '--kind', 'rotation']) == 3
+    assert 'not found' in capsys.readouterr().err
+    short = tmp_path / 'short.csv'
+    short.write_text('\n'.join(est.read_text().splitlines()[:6]) + '\n')
+    assert main(['evaluate', str(ds), str(short), '--kind', 'rotation']) == 3
+    assert 'only 5 estimates' in capsys.readouterr().err

@@ -1,0 +1,110 @@
+"""Message ↔ numpy conversions (io/ros_msgs.py), built without rclpy.init."""
+
+from __future__ import annotations
+
+import math
+
+from event_camera_msgs.msg import EventPacket
+import numpy as np
+import pytest
+from sensor_msgs.msg import CameraInfo, Imu
+
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.odometry.odometry import OdometryConfig, readout_to_pose
+from hrn_vo_ros.errors import DecodeError
+from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.io.eventpacket import encode_mono, PacketDecoder
+
+
+def test_stamps_round_trip_exactly() -> None:
+    for t in (0, 1, 999_999_999, 1_700_000_000_123_456_789):
+        assert ros_msgs.stamp_to_ns(ros_msgs.ns_to_stamp(t)) == t
+    with pytest.raises(DecodeError):
+        ros_msgs.ns_to_stamp(-1)
+
+
+def test_event_packet_decodes_and_unknown_encoding_fails(rng: np.random.Generator) -> None:
+    ev = EventArray.from_arrays(np.arange(50) * 7 + 10**12, rng.integers(0, 240, 50),
+                                rng.integers(0, 180, 50), rng.integers(0, 2, 50))
+    base, payload = encode_mono(ev)
+    msg = EventPacket(time_base=base, encoding='mono', events=payload.tobytes())
+    got = ros_msgs.events_from_packet(msg, PacketDecoder())
+    for a in ('t', 'x', 'y', 'p'):
+        np.testing.assert_array_equal(getattr(got, a), getattr(ev, a))
+    msg.encoding = 'libcaer_cmp'
+    with pytest.raises(DecodeError, match='libcaer_cmp'):
+        ros_msgs.events_from_packet(msg, PacketDecoder())
+
+
+def test_frames_round_trip_and_bad_frames_fail(rng: np.random.Generator) -> None:
+    img = (rng.random((72, 96)) < 0.3).astype(np.uint8)
+    msg = ros_msgs.frame_to_image(img, 123_456, 'cam')
+    assert (msg.encoding, msg.step, msg.header.frame_id) == ('mono8', 96, 'cam')
+    assert set(np.unique(np.frombuffer(msg.data, np.uint8))) == {0, 255}
+    t, back = ros_msgs.image_to_frame(msg)
+    assert t == 123_456 and np.array_equal(back, img)
+    msg.data = bytes(10)
+    with pytest.raises(DecodeError, match='carries 10 bytes'):
+        ros_msgs.image_to_frame(msg)
+    grey = ros_msgs.float_image_to_mono8(np.linspace(0, 1, 96 * 72).reshape(72, 96), 0, 'c')
+    with pytest.raises(DecodeError, match='0 or 255'):
+        ros_msgs.image_to_frame(grey)
+
+
+def test_imu_and_nan() -> None:
+    m = Imu()
+    m.header.stamp = ros_msgs.ns_to_stamp(5)
+    m.angular_velocity.x, m.linear_acceleration.z = 0.5, 9.81
+    t, gyro, acc = ros_msgs.imu_to_arrays(m)
+    assert t == 5 and gyro.tolist() == [0.5, 0, 0] and acc.tolist() == [0, 0, 9.81]
+    m.angular_velocity.y = math.nan
+    with pytest.raises(DecodeError, match='not finite'):
+        ros_msgs.imu_to_arrays(m)
+
+
+def test_pose_messages_carry_the_pose() -> None:
+    pose = readout_to_pose(OdometryConfig(focal_length_px=80.0), 7_000_000_001, 8.0, -4.0, 0.3,
+                           None, {'h': 1.0, 'v': 0.5, 'r': 0.9})
+    ps = ros_msgs.pose_to_pose_stamped(pose, 'odom')
+    od = ros_msgs.pose_to_odometry(pose, 'odom', 'base_link', 1e4)
+    tf = ros_msgs.pose_to_tf(pose, 'odom', 'base_link')
+    q = [ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z,
+         ps.pose.orientation.w]
+    np.testing.assert_allclose(q, pose.quat)
+    np.testing.assert_allclose(np.reshape(od.pose.covariance, (6, 6)), pose.covariance)
+    assert od.twist.covariance[0] == 1e4 and od.child_frame_id == 'base_link'
+    assert ros_msgs.stamp_to_ns(tf.transforms[0].header.stamp) == 7_000_000_001
+    assert tf.transforms[0].transform.rotation.w == pytest.approx(pose.quat[3])
+
+
+def test_readout_round_trip_and_diagnostics() -> None:
+    msg = ros_msgs.readout_to_joint_state(42, {'h': 1.5, 'v': -2.0, 'r': 0.1}, {'h': 0.9})
+    t, values, conf = ros_msgs.joint_state_to_readout(msg)
+    assert (t, values) == (42, {'h': 1.5, 'v': -2.0, 'r': 0.1})
+    assert conf['h'] == 0.9 and math.isnan(conf['v'])
+    d = ros_msgs.diagnostics(1, 'n', 'hw', 'warn', 'm', [('frames', 3), ('rate', '1.0')])
+    assert d.status[0].level == b'\x01'
+    assert ros_msgs.diagnostic_values(d) == {'frames': '3', 'rate': '1.0'}
+
+
+def test_camera_info_gives_the_plumb_bob_calibration_or_a_clear_error() -> None:
+    k = [199.1, 0.0, 121.3, 0.0, 198.8, 89.6, 0.0, 0.0, 1.0]
+    msg = CameraInfo(width=240, height=180, distortion_model='plumb_bob', k=k,
+                     d=[-0.12, 0.03, 0.001, 0.0, 0.0])
+    c = ros_msgs.camera_info_to_calibration(msg)
+    assert (c.width, c.height, c.fx, c.fy, c.cx, c.cy) == (240, 180, 199.1, 198.8, 121.3, 89.6)
+    assert c.dist == (-0.12, 0.03, 0.001, 0.0, 0.0)
+    short = CameraInfo(width=240, height=180, distortion_model='plumb_bob', k=k, d=[-0.1, 0.02])
+    assert ros_msgs.camera_info_to_calibration(short).dist == (-0.1, 0.02, 0.0, 0.0, 0.0)
+    pinhole = CameraInfo(width=240, height=180, k=k)
+    assert ros_msgs.camera_info_to_calibration(pinhole).dist == (0.0,) * 5
+    with pytest.raises(DecodeError, match='not calibrated'):
+        ros_msgs.camera_info_to_calibration(CameraInfo(width=240, height=180))
+    with pytest.raises(DecodeError, match='equidistant.*not supported'):
+        ros_msgs.camera_info_to_calibration(
+            CameraInfo(width=240, height=180, k=k, distortion_model='equidistant', d=[0.1] * 4))
+    with pytest.raises(DecodeError, match='past k3'):
+        ros_msgs.camera_info_to_calibration(CameraInfo(
+            width=240, height=180, k=k, distortion_model='rational_polynomial', d=[0.1] * 8))
+    with pytest.raises(DecodeError, match='size 0x180'):
+        ros_msgs.camera_info_to_calibration(CameraInfo(width=0, height=180, k=k))

@@ -1,0 +1,283 @@
+"""packetizer_node and resonator_node as real rclpy nodes over DDS: data flow and bad input."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+import math
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from event_camera_msgs.msg import EventPacket
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
+
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.frames import frames_from_events, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.io import ros_msgs
+from hrn_vo_ros.io.eventpacket import encode_mono
+from hrn_vo_ros.nodes.common import qos
+from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+from hrn_vo_ros.nodes.resonator_node import ResonatorNode
+
+pytestmark = pytest.mark.ros
+PER_FRAME = 500
+
+
+def random_events(rng: np.random.Generator, n: int, t0: int = 1_000_000) -> EventArray:
+    t = t0 + np.cumsum(rng.integers(1, 2000, n))
+    return EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                  rng.integers(0, 2, n))
+
+
+def packet(ev: EventArray, seq: int, encoding: str = 'mono') -> EventPacket:
+    base, payload = encode_mono(ev)
+    msg = EventPacket(height=180, width=240, seq=seq, time_base=base, encoding=encoding,
+                      is_bigendian=False)
+    msg.events = payload.tobytes()
+    return msg
+
+
+class Graph:
+    """The two nodes plus a probe node that feeds and listens, on one executor."""
+
+    def __init__(self, imu: bool = False) -> None:
+        params = [Parameter('events_per_frame', value=PER_FRAME),
+                  Parameter('events_reliable', value=True), Parameter('diagnostics_period_s',
+                                                                      value=0.2)]
+        remap = ['--ros-args', '-r', '~/frames:=/frames']
+        self.packetizer = PacketizerNode(parameter_overrides=params, cli_args=remap)
+        self.resonator = ResonatorNode(cli_args=remap, parameter_overrides=[
+            Parameter('diagnostics_period_s', value=0.2), Parameter('imu.enabled', value=imu),
+            Parameter('focal_px', value=80.0), Parameter('imu_timeout_s', value=0.3)])
+        self.probe = Node('probe')
+        self.ev_pub = self.probe.create_publisher(EventPacket, '/packetizer_node/events',
+                                                  qos(1000))
+        self.frame_pub = self.probe.create_publisher(Image, '/frames', qos(100))
+        self.imu_pub = self.probe.create_publisher(Imu, '/resonator_node/imu', qos(100))
+        self.frames: list[Image] = []
+        self.readouts: list[JointState] = []
+        self.odoms: list[Odometry] = []
+        self.diags: dict[str, dict[str, str]] = {}
+        self.probe.create_subscription(Image, '/frames', self.frames.append,
+                                       qos(1000))
+        self.probe.create_subscription(JointState, '/resonator_node/readout',
+                                       self.readouts.append, qos(1000))
+        self.probe.create_subscription(Odometry, '/resonator_node/odom', self.odoms.append,
+                                       qos(1000))
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 100)
+        self.ex = SingleThreadedExecutor()
+        for n in (self.packetizer, self.resonator, self.probe):
+            self.ex.add_node(n)
+        self.wait(lambda: self.ev_pub.get_subscription_count() > 0
+                  and self.frame_pub.get_subscription_count() > 0)
+
+    def _on_diag(self, msg: DiagnosticArray) -> None:
+        self.diags[msg.status[0].name.split(':')[0]] = ros_msgs.diagnostic_values(msg)
+
+    def wait(self, cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if cond():
+                return True
+            self.ex.spin_once(timeout_sec=0.02)
+        return cond()
+
+    def close(self) -> None:
+        for n in (self.packetizer, self.resonator, self.probe):
+            n.destroy_node()
+
+
+@pytest.fixture
+def graph() -> Iterator[Graph]:
+    rclpy.init()
+    g = Graph()
+    try:
+        yield g
+    finally:
+        g.close()
+        rclpy.try_shutdown()
+
+
+def test_packets_become_frames_and_odometry(graph: Graph, rng: np.random.Generator) -> None:
+    ev = random_events(rng, 10 * PER_FRAME + 123)
+    cuts = [0, 7, 900, 901, 2600, 5000, len(ev)]      # splits frames, spans several frames
+    for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+        graph.ev_pub.publish(packet(ev[a:b], seq=i))
+    assert graph.wait(lambda: len(graph.odoms) >= 10)
+    t_ref, images = frames_from_events(ev, PacketizerConfig(events_per_frame=PER_FRAME))
+    got = [ros_msgs.image_to_frame(m) for m in graph.frames]
+    assert [t for t, _ in got] == t_ref.tolist()
+    assert all(np.array_equal(img, ref) for (_, img), ref in zip(got, images, strict=True))
+    assert graph.frames[0].encoding == 'mono8' and max(graph.frames[0].data) == 255
+    assert graph.frames[0].header.frame_id == 'event_camera_optical_frame'
+    assert [ros_msgs.stamp_to_ns(m.header.stamp) for m in graph.odoms] == t_ref.tolist()
+    assert list(graph.readouts[-1].name) == ['h', 'v', 'r']
+    odom = graph.odoms[-1]
+    assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
+    assert all(math.isfinite(c) for c in odom.pose.covariance) and odom.pose.covariance[0] > 0
+    assert graph.wait(lambda: graph.diags.get('resonator_node', {}).get('estimates_out') == '10')
+
+
+def test_malformed_packets_are_counted_and_survived(graph: Graph,
+                                                    rng: np.random.Generator) -> None:
+    ev = random_events(rng, 4 * PER_FRAME)
+    graph.ev_pub.publish(packet(ev[:PER_FRAME], 0))
+    graph.ev_pub.publish(packet(ev[PER_FRAME:2 * PER_FRAME], 1, encoding='libcaer_cmp'))
+    graph.ev_pub.publish(packet(EventArray.empty(), 2))
+    bad_xy = EventArray.from_arrays(ev.t[:10] + ev.t[-1], np.full(10, 300), ev.y[:10],
+                                    ev.p[:10])
+    graph.ev_pub.publish(packet(bad_xy, 3))
+    graph.ev_pub.publish(packet(ev[:PER_FRAME], 4))                 # back in time
+    graph.ev_pub.publish(packet(ev[2 * PER_FRAME:], 7))              # seq gap of 2, good data
+    assert graph.wait(lambda: graph.diags.get('packetizer_node', {}).get('frames_out') == '3')
+    d = graph.diags['packetizer_node']
+    assert (d['bad_decode'], d['bad_empty'], d['bad_out_of_sensor'], d['bad_time_backwards'],
+            d['seq_gaps']) == ('1', '1', '1', '1', '2')
+    assert len(graph.frames) == 3
+
+
+def test_malformed_frames_are_counted_and_survived(graph: Graph) -> None:
+    good = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 2_000_000, 'cam')
+    rgb = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 3_000_000, 'cam')
+    rgb.encoding = 'rgb8'
+    small = ros_msgs.frame_to_image(np.eye(10, 10, dtype=np.uint8), 4_000_000, 'cam')
+    old = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 1_000_000, 'cam')
+    later = ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 5_000_000, 'cam')
+    for m in (good, rgb, small, old, later):
+        graph.frame_pub.publish(m)
+    assert graph.wait(lambda: graph.diags.get('resonator_node', {}).get('bad_total') == '3'
+                      and len(graph.odoms) == 2)
+    d = graph.diags['resonator_node']
+    assert (d['bad_decode'], d['bad_size'], d['bad_time_backwards']) == ('1', '1', '1')
+
+
+def test_imu_frames_wait_for_gyro_and_nan_imu_is_rejected() -> None:
+    rclpy.init()
+    g = Graph(imu=True)
+    try:
+        def imu(t_ns: int, wz: float) -> Imu:
+            m = Imu()
+            m.header.stamp = ros_msgs.ns_to_stamp(t_ns)
+            m.angular_velocity.z = wz
+            return m
+        g.wait(lambda: g.imu_pub.get_subscription_count() > 0)
+        for k in range(1, 4):
+            g.frame_pub.publish(ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8),
+                                                        k * 10_000_000, 'cam'))
+        g.imu_pub.publish(imu(0, 0.0))
+        g.imu_pub.publish(imu(15_000_000, math.nan))
+        g.imu_pub.publish(imu(25_000_000, 1.0))
+        assert g.wait(lambda: len(g.odoms) == 2)          # the third still waits for IMU
+        g.ex.spin_once(timeout_sec=0.1)
+        assert len(g.odoms) == 2
+        assert g.wait(lambda: len(g.odoms) == 3, timeout=3.0)   # imu_timeout_s flushes it
+        assert g.wait(lambda: g.diags.get('resonator_node', {}).get('bad_imu') == '1')
+    finally:
+        g.close()
+        rclpy.try_shutdown()
+
+
+def test_tf_and_images_when_enabled() -> None:
+    from tf2_msgs.msg import TFMessage
+
+    rclpy.init()
+    try:
+        node = ResonatorNode(parameter_overrides=[
+            Parameter('publish_tf', value=True),
+            Parameter('odometry.child_frame', value='camera'),
+            Parameter('camera_frame_id', value='cam_optical')])
+        probe = Node('tf_probe')
+        got: dict[str, list] = {'tf': [], 'map': [], 'img': []}
+        probe.create_subscription(TFMessage, '/tf', got['tf'].append, 100)
+        probe.create_subscription(Image, '/resonator_node/map_image', got['map'].append, 10)
+        probe.create_subscription(Image, '/resonator_node/readout_image', got['img'].append, 10)
+        pub = probe.create_publisher(Image, '/resonator_node/frames', qos(10))
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        ex.add_node(probe)
+        end = time.monotonic() + 10
+        while time.monotonic() < end and not pub.get_subscription_count():
+            ex.spin_once(timeout_sec=0.05)
+        pub.publish(ros_msgs.frame_to_image(np.eye(72, 96, dtype=np.uint8), 7, 'c'))
+        while time.monotonic() < end and not (got['tf'] and got['map'] and got['img']):
+            ex.spin_once(timeout_sec=0.05)
+        tf = got['tf'][0].transforms[0]
+        assert (tf.header.frame_id, tf.child_frame_id) == ('odom', 'cam_optical')
+        assert got['map'][0].encoding == 'mono8' and got['img'][0].width == 96
+        node.destroy_node()
+        probe.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+
+
+def camera_info(calib: CameraCalibration | None) -> CameraInfo:
+    m = CameraInfo(width=240, height=180, distortion_model='plumb_bob')
+    if calib is not None:
+        m.k = [calib.fx, 0.0, calib.cx, 0.0, calib.fy, calib.cy, 0.0, 0.0, 1.0]
+        m.d = list(calib.dist)
+    return m
+
+
+def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Generator) -> None:
+    """Events before the (latched) camera_info are held, not lost; bad camera_info is rejected."""
+    calib = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.0, 0.0, 0.0))
+    rclpy.init()
+    node = PacketizerNode(parameter_overrides=[
+        Parameter('events_per_frame', value=PER_FRAME), Parameter('events_reliable', value=True),
+        Parameter('rectify', value='equidistant'), Parameter('diagnostics_period_s', value=0.2)])
+    probe = Node('probe')
+    try:
+        ev_pub = probe.create_publisher(EventPacket, '/packetizer_node/events', qos(1000))
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        info_pub = probe.create_publisher(CameraInfo, '/packetizer_node/camera_info', latched)
+        frames: list[Image] = []
+        diags: list[dict[str, str]] = []
+        probe.create_subscription(Image, '/packetizer_node/frames', frames.append, qos(1000))
+        probe.create_subscription(
+            DiagnosticArray, '/diagnostics',
+            lambda m: diags.append(ros_msgs.diagnostic_values(m)), 100)
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        ex.add_node(probe)
+
+        def wait(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+            end = time.monotonic() + timeout
+            while time.monotonic() < end and not cond():
+                ex.spin_once(timeout_sec=0.02)
+            return cond()
+
+        assert wait(lambda: ev_pub.get_subscription_count() > 0)
+        ev = random_events(rng, 6 * PER_FRAME + 50)
+        ev_pub.publish(packet(ev[:2500], 0))
+        ev_pub.publish(packet(ev[2500:], 1))
+        assert wait(lambda: any(d.get('events_held') == str(len(ev)) for d in diags))
+        assert not frames and diags[-1]['waiting_for_camera_info'] == 'True'
+        info_pub.publish(camera_info(None))                       # uncalibrated: rejected
+        assert wait(lambda: any(d.get('bad_camera_info') == '1' for d in diags))
+        assert not frames
+        info_pub.publish(camera_info(calib))                      # latched, as bags replay it
+        assert wait(lambda: len(frames) == 6)
+        cfg = with_calibration(PacketizerConfig(events_per_frame=PER_FRAME,
+                                                rectify='equidistant'), calib)
+        t_ref, images = frames_from_events(ev, cfg)
+        got = [ros_msgs.image_to_frame(m) for m in frames]
+        assert [t for t, _ in got] == t_ref.tolist()
+        assert all(np.array_equal(img, ref) for (_, img), ref in zip(got, images, strict=True))
+        # the held events were rectified: they differ from plain binning
+        _, plain = frames_from_events(ev, PacketizerConfig(events_per_frame=PER_FRAME))
+        assert not np.array_equal(plain, images)
+        assert wait(lambda: diags[-1].get('waiting_for_camera_info') == 'False'
+                    and diags[-1].get('events_held') == '0')
+    finally:
+        node.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown()
