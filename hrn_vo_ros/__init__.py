@@ -6,7 +6,7 @@ Layers (imports only go downwards):
 * :mod:`hrn_vo_ros.io` converts messages, reads datasets and writes/reads bags;
 * :mod:`hrn_vo_ros.nodes` and :mod:`hrn_vo_ros.cli` are thin ROS nodes and command-line tools.
 
-Time is int64 nanoseconds everywhere inside the package (see README, "Clocks").
+Time is int64 nanoseconds everywhere inside the package (docs/architecture.md, "Time").
 """
 
 import logging

@@ -5,7 +5,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 VENV=${HRN_VENV:-$ROOT/.venv}
 if [ ! -f "$VENV/hrn_env.sh" ]; then
-    echo "[run] no environment yet: run 'make setup' (or scripts/setup.sh) first" >&2
+    echo "[run] no environment yet: run scripts/setup.sh first" >&2
     exit 2
 fi
 # shellcheck source=/dev/null

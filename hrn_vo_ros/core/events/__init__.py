@@ -1,1 +1,1 @@
-"""events."""
+"""Events in: event arrays, sequences, the lens model, event frames."""

@@ -1,1 +1,1 @@
-"""odometry."""
+"""Odometry: estimates, rotations, gyro integration, readout to ROS poses."""

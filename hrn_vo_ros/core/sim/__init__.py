@@ -1,1 +1,1 @@
-"""sim."""
+"""The event-camera simulator (textured scenes, motions, events, IMU, ground truth)."""
