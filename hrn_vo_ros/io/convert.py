@@ -120,7 +120,7 @@ def _open_ecd(path: Path, sensor_size: tuple[int, int] | None) -> Source:
 
 
 def _has(path: Path, name: str) -> bool:
-    with ecd._Source(path) as src:
+    with ecd.SequenceSource(path) as src:
         return src.exists(name)
 
 
@@ -330,20 +330,11 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
         ConfigError: invalid packet options.
     """
     start = time.perf_counter()
-    if events_per_packet is None and packet_duration_ms is None:
-        packet_duration_ms = DEFAULT_PACKET_DURATION_MS
-    if events_per_packet is not None and packet_duration_ms is not None:
-        raise ConfigError('give either --events-per-packet or --packet-duration, not both')
-    duration_ns = None if packet_duration_ms is None else round(packet_duration_ms * 1e6)
-    splitter = PacketSplitter(events_per_packet=events_per_packet, duration_ns=duration_ns)
+    splitter = _packet_splitter(events_per_packet, packet_duration_ms)
     dst = Path(dst)
     bags._check_target(dst)
     source = open_source(src, sensor_size=sensor_size, trajectory=trajectory,
                          time_unit=time_unit)
-    checksum = EventChecksum()
-    n_packets = 0
-    first_t: int | None = None
-    last_t: int | None = None
     try:
         if on_source is not None:
             on_source(source)
@@ -352,57 +343,107 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
         source.closer.close()
         raise
     with source.closer, writer_cm as writer:
-        batches = source.events()
-        first = next((ev for ev in batches if len(ev)), EventArray.empty())
-        t_start = int(first.t[0]) if len(first) else None
-        side = _side_messages(source, writer.ts, frame_id, t_start)
-        conns = {topic: writer.add_topic(topic, msgtype, qos)
-                 for topic, msgtype, qos in _topics(source)}
-        k = 0
-
-        def flush_side(until: int | None) -> None:
-            nonlocal k
-            while k < len(side) and (until is None or side[k][0] <= until):
-                t, topic, raw = side[k]
-                writer.write(conns[topic], t, raw)
-                k += 1
-
-        def write_packets(buf: EventArray, bounds: NDArray[np.int64]) -> None:
-            nonlocal n_packets
-            if len(bounds) < 2:
-                return
-            time_bases, payload = eventpacket.encode_mono_packets(buf, bounds)
-            ends = buf.t[bounds[1:] - 1].tolist()
-            for i, (a, b) in enumerate(zip((8 * bounds[:-1]).tolist(),
-                                           (8 * bounds[1:]).tolist(), strict=True)):
-                time_base, t_pub = int(time_bases[i]), ends[i]
-                flush_side(t_pub)
-                raw = bags.event_packet_cdr(
-                    stamp_ns=time_base, frame_id=frame_id, height=source.height,
-                    width=source.width, seq=n_packets, time_base=time_base, encoding='mono',
-                    is_bigendian=False, payload=payload[a:b])
-                writer.write(conns[EVENTS_TOPIC], t_pub, raw)
-                n_packets += 1
-
-        for ev in itertools.chain([first], batches):
-            if len(ev) == 0:
-                continue
-            checksum.update(ev)
-            if first_t is None:
-                first_t = int(ev.t[0])
-            last_t = int(ev.t[-1])
-            write_packets(*splitter.push_bounds(ev))
-            if progress is not None:
-                progress(len(ev))
-        for last in splitter.flush():
-            write_packets(last, np.array([0, len(last)], np.int64))
-        flush_side(None)
+        written = _write_bag(source, writer, splitter, frame_id, progress)
         counts = dict(writer.counts)
-    return ConversionStats(events=checksum.count, packets=n_packets, imu=counts.get(IMU_TOPIC, 0),
-                           poses=counts.get(POSE_TOPIC, 0),
+    return ConversionStats(events=written.checksum.count, packets=written.packets,
+                           imu=counts.get(IMU_TOPIC, 0), poses=counts.get(POSE_TOPIC, 0),
                            camera_info=counts.get(CAMERA_INFO_TOPIC, 0),
-                           checksum=checksum.hexdigest(), first_t_ns=first_t, last_t_ns=last_t,
-                           seconds=time.perf_counter() - start, source_kind=source.kind)
+                           checksum=written.checksum.hexdigest(), first_t_ns=written.first_t,
+                           last_t_ns=written.last_t, seconds=time.perf_counter() - start,
+                           source_kind=source.kind)
+
+
+def _packet_splitter(events_per_packet: int | None,
+                     packet_duration_ms: float | None) -> PacketSplitter:
+    """The splitter for the packet options (2 ms packets when neither is given)."""
+    if events_per_packet is None and packet_duration_ms is None:
+        packet_duration_ms = DEFAULT_PACKET_DURATION_MS
+    if events_per_packet is not None and packet_duration_ms is not None:
+        raise ConfigError('give either --events-per-packet or --packet-duration, not both')
+    duration_ns = None if packet_duration_ms is None else round(packet_duration_ms * 1e6)
+    return PacketSplitter(events_per_packet=events_per_packet, duration_ns=duration_ns)
+
+
+class _EventBag:
+    """The records of one conversion: mono EventPackets, and the side records (IMU, poses,
+    camera info) written before the first packet published after them (bag-time order).
+
+    Args:
+        writer: The open bag.
+        source: The dataset (topics, side data, sensor size).
+        frame_id: ``header.frame_id`` of events and camera info.
+        t_start: Sensor time of the first event (None: no events).
+    """
+
+    def __init__(self, writer: bags.BagWriter, source: Source, frame_id: str,
+                 t_start: int | None) -> None:
+        self.writer = writer
+        self.source = source
+        self.frame_id = frame_id
+        self.side = _side_messages(source, writer.ts, frame_id, t_start)
+        self.conns = {topic: writer.add_topic(topic, msgtype, qos)
+                      for topic, msgtype, qos in _topics(source)}
+        self.k = 0        # side records written so far
+        self.packets = 0  # event packets written so far
+
+    def flush_side(self, until: int | None) -> None:
+        """Write the side records stamped at or before ``until`` (None: all the rest)."""
+        while self.k < len(self.side) and (until is None or self.side[self.k][0] <= until):
+            t, topic, raw = self.side[self.k]
+            self.writer.write(self.conns[topic], t, raw)
+            self.k += 1
+
+    def write_packets(self, buf: EventArray, bounds: NDArray[np.int64]) -> None:
+        """Write packets ``buf[bounds[i]:bounds[i + 1]]``, each at its last event's time."""
+        if len(bounds) < 2:
+            return
+        time_bases, payload = eventpacket.encode_mono_packets(buf, bounds)
+        ends = buf.t[bounds[1:] - 1].tolist()
+        for i, (a, b) in enumerate(zip((8 * bounds[:-1]).tolist(),
+                                       (8 * bounds[1:]).tolist(), strict=True)):
+            time_base, t_pub = int(time_bases[i]), ends[i]
+            self.flush_side(t_pub)
+            raw = bags.event_packet_cdr(
+                stamp_ns=time_base, frame_id=self.frame_id, height=self.source.height,
+                width=self.source.width, seq=self.packets, time_base=time_base,
+                encoding='mono', is_bigendian=False, payload=payload[a:b])
+            self.writer.write(self.conns[EVENTS_TOPIC], t_pub, raw)
+            self.packets += 1
+
+
+@dataclass(frozen=True, slots=True)
+class _Written:
+    """The events :func:`_write_bag` wrote."""
+
+    checksum: EventChecksum
+    packets: int
+    first_t: int | None
+    last_t: int | None
+
+
+def _write_bag(source: Source, writer: bags.BagWriter, splitter: PacketSplitter, frame_id: str,
+               progress: Callable[[int], None] | None) -> _Written:
+    """Stream the source's events into packets and write everything to the open bag."""
+    checksum = EventChecksum()
+    first_t: int | None = None
+    last_t: int | None = None
+    batches = source.events()
+    first = next((ev for ev in batches if len(ev)), EventArray.empty())
+    bag = _EventBag(writer, source, frame_id, int(first.t[0]) if len(first) else None)
+    for ev in itertools.chain([first], batches):
+        if len(ev) == 0:
+            continue
+        checksum.update(ev)
+        if first_t is None:
+            first_t = int(ev.t[0])
+        last_t = int(ev.t[-1])
+        bag.write_packets(*splitter.push_bounds(ev))
+        if progress is not None:
+            progress(len(ev))
+    for last in splitter.flush():
+        bag.write_packets(last, np.array([0, len(last)], np.int64))
+    bag.flush_side(None)
+    return _Written(checksum, bag.packets, first_t, last_t)
 
 
 def _topics(source: Source) -> list[tuple[str, str, Qos]]:

@@ -1,6 +1,6 @@
 """Event Camera Dataset ROS 1 bags (``rosbags.rosbag1``): read fast, and write fixtures.
 
-Topics of the dataset's bags (``docs/ros_notes.md`` §1.4): ``/dvs/events``
+Topics of the dataset's bags (as the dataset publishes them): ``/dvs/events``
 (``dvs_msgs/EventArray``, decoded with numpy from the packed 13-byte records, no per-event
 objects), ``/dvs/imu`` (``sensor_msgs/Imu``), ``/optitrack/davis`` (``geometry_msgs/PoseStamped``,
 absent in outdoor sequences) and ``/dvs/camera_info`` (``sensor_msgs/CameraInfo``). Times are the

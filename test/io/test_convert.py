@@ -195,8 +195,8 @@ def write_bad(tmp_path: Path, kind: str) -> tuple[list[str], str]:
             conn = w.add_topic('/event_camera/events', bags.EVENT_PACKET, bags.EVENTS_QOS)
             w.write(conn, 1, bags.event_packet_cdr(
                 stamp_ns=1, frame_id='cam', height=180, width=240, seq=0, time_base=0,
-                encoding='libcaer_cmp', is_bigendian=False, payload=bytes(16)))
-        return [str(tmp_path / 'caer')], "unknown EventPacket encoding 'libcaer_cmp'"
+                encoding='trigger_only', is_bigendian=False, payload=bytes(16)))
+        return [str(tmp_path / 'caer')], "unknown EventPacket encoding 'trigger_only'"
     raise AssertionError(kind)
 
 
@@ -224,7 +224,7 @@ def test_convert_refuses_to_overwrite(tmp_path: Path, capsys: pytest.CaptureFixt
 
 def test_unknown_encoding_while_reading_a_bag(tmp_path: Path) -> None:
     write_bad(tmp_path, 'unknown_encoding')
-    with pytest.raises(DecodeError, match='libcaer_cmp'):
+    with pytest.raises(DecodeError, match='trigger_only'):
         list(bags.iter_bag_events(tmp_path / 'caer'))
 
 

@@ -12,6 +12,7 @@ from hrn_vo_ros.core.events.arrays import EventArray, EventChecksum
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence, Trajectory
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io import ecd
+from hrn_vo_ros.io.ecd import eventparse, writer
 
 
 def make_sequence(rng: np.random.Generator, n: int = 5000, *, width: int = 240,
@@ -62,7 +63,7 @@ def test_round_trip_is_exact(tmp_path: Path, rng: np.random.Generator) -> None:
 def test_streaming_batches_and_zip(tmp_path: Path, rng: np.random.Generator,
                                    monkeypatch: pytest.MonkeyPatch) -> None:
     seq = make_sequence(rng, n=20000, width=346, height=260)
-    monkeypatch.setattr(ecd, '_parse_slow', None)  # our files take the vectorised path
+    monkeypatch.setattr(eventparse, '_parse_slow', None)  # our files take the vectorised path
     folder = ecd.write_sequence(tmp_path / 'seq', seq)
     batches = list(ecd.iter_events(folder, chunk_events=3000))
     assert len(batches) >= 7 and max(len(b) for b in batches) <= 3000
@@ -113,7 +114,7 @@ def test_other_layouts_parse_line_by_line(tmp_path: Path) -> None:
 def test_six_decimals_fast_path(tmp_path: Path, eol: str, t0: int,
                                 monkeypatch: pytest.MonkeyPatch) -> None:
     lines = ''.join(f'{t0 + i}.{i:06d} {i % 240} {i % 180} {i % 2}{eol}' for i in range(1000))
-    monkeypatch.setattr(ecd, '_parse_slow', None)  # must not be needed
+    monkeypatch.setattr(eventparse, '_parse_slow', None)  # must not be needed
     ev = ecd.read_events(write_plain(tmp_path / 'x', lines))
     assert ev.t.tolist() == [(t0 + i) * 1_000_000_000 + i * 1000 for i in range(1000)]
     assert ev.p.tolist() == [i % 2 for i in range(1000)]
@@ -212,7 +213,7 @@ def test_writer_refuses_overwrite_and_leaves_nothing_when_interrupted(
     def boom(ev: EventArray) -> bytes:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(ecd, 'format_events', boom)
+    monkeypatch.setattr(writer, 'format_events', boom)  # where write_sequence looks it up
     with pytest.raises(KeyboardInterrupt):
         ecd.write_sequence(tmp_path / 'other', seq)
     assert sorted(p.name for p in tmp_path.iterdir()) == ['seq']

@@ -5,6 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hrn_vo_ros.core.evaluation.metrics import (
+    arm_metrics,
+    KIND_METRICS,
+    rotation_metrics,
+    translation_metrics,
+)
 from hrn_vo_ros.core.evaluation.protocol import (
     estimate_lag,
     EstimateSeries,
@@ -13,6 +19,8 @@ from hrn_vo_ros.core.evaluation.protocol import (
     relative_position_errors,
     umeyama,
 )
+from hrn_vo_ros.core.evaluation.samples import align_samples, GroundTruthArrays
+from hrn_vo_ros.core.evaluation.series import EVAL_KINDS
 from hrn_vo_ros.core.events.sequence import Trajectory
 from hrn_vo_ros.core.odometry.geometry import (
     euler_ptr_to_matrix,
@@ -305,3 +313,22 @@ def test_unknown_kind_and_calib() -> None:
         evaluate(gt, est, 'rotation', calib='all')
     with pytest.raises(ConfigError, match='rotation convention'):
         evaluate(gt, est, 'rotation', convention='zyx')
+
+
+@pytest.mark.parametrize('kind', EVAL_KINDS)
+def test_evaluate_dispatches_to_the_kind_metric_function(kind: str) -> None:
+    """``evaluate`` reports exactly what the kind's metric function computes on the aligned
+    samples (the per-kind API is usable on its own)."""
+    case = {'rotation': _rotation_case, 'translation': _translation_case, 'arm': _arm_case}
+    gt, est = case[kind]()
+    res = evaluate(gt, est, kind)
+    assert KIND_METRICS[kind] is {'rotation': rotation_metrics,
+                                  'translation': translation_metrics, 'arm': arm_metrics}[kind]
+    g = GroundTruthArrays.from_trajectory(gt, 'swing-twist')
+    t = est.t.astype(np.float64) * 1e-9 - res.lag_s
+    inside = (t >= g.t[0]) & (t <= g.t[-1])
+    samples = align_samples(g, t[inside], est, inside, convention='swing-twist',
+                            roll_zero_s=0.1)
+    direct = KIND_METRICS[kind](samples, res.series.calib, res.series.test)
+    assert direct.metrics == res.metrics
+    np.testing.assert_array_equal(direct.err, res.series.err)

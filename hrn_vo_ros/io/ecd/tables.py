@@ -1,0 +1,165 @@
+"""The small text tables of a sequence: ``imu.txt``, ``groundtruth.txt``, ``calib.txt``, and
+the whole sequence in memory."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+import warnings
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence, Trajectory
+from hrn_vo_ros.errors import DatasetError
+from hrn_vo_ros.io.ecd.eventparse import read_events
+from hrn_vo_ros.io.ecd.source import (
+    CALIB_FILE,
+    GROUNDTRUTH_FILE,
+    IMU_FILE,
+    meta_count,
+    META_FILE,
+    read_meta,
+    SequenceSource,
+    source_sensor_size,
+)
+from hrn_vo_ros.io.ecd.times import seconds_to_ns
+
+
+def _read_table(src: SequenceSource, name: str, columns: str,
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """A small ``t v1 v2 ...`` text table of a sequence (see :func:`parse_table`)."""
+    return parse_table(src.read_text(name), columns, src.where(name))
+
+
+def parse_table(text: str, columns: str, where: Path | str, *,
+                to_ns: Callable[[str], int] = seconds_to_ns,
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """A ``t v1 v2 ...`` text table: exact int ns times (decimal seconds) and float values.
+
+    Blank lines and ``#`` comments are skipped; the times must not decrease.
+
+    Args:
+        text: The table.
+        columns: Column names, space separated (``'t px py pz qx qy qz qw'``), for messages.
+        where: File named in the errors.
+        to_ns: Time token → int ns (default exact decimal seconds).
+
+    Raises:
+        DatasetError: naming the line for a wrong column count, a bad or non-finite number or a
+            time before the previous line.
+
+    Shapes:
+        returns t (n,) int64 and values (n, ncol - 1) float64.
+    """
+    ncol = len(columns.split())
+    fast = _table_fast(text, ncol) if to_ns is seconds_to_ns else None
+    if fast is not None:
+        return fast
+    lines = text.split('\n')
+    ts: list[int] = []
+    rows: list[list[float]] = []
+    for i, line in enumerate(lines):
+        parts = line.split()
+        if not parts or parts[0].startswith('#'):
+            continue
+        if len(parts) != ncol:
+            hint = (' (the file looks truncated: its last line is incomplete)'
+                    if i == len(lines) - 1 else '')
+            msg = f'expected {ncol} columns "{columns}", got {len(parts)}: {line[:60]!r}{hint}'
+            raise DatasetError(msg, path=where, line=i + 1)
+        try:
+            t = to_ns(parts[0])
+            vals = [float(v) for v in parts[1:]]
+        except ValueError as err:
+            raise DatasetError(f'malformed line {line[:60]!r}: {err}', path=where,
+                               line=i + 1) from None
+        if not all(np.isfinite(vals)):
+            raise DatasetError(f'non-finite value in {line[:60]!r}', path=where, line=i + 1)
+        if ts and t < ts[-1]:
+            raise DatasetError(f'time {parts[0]} s is before the previous line: lines must be '
+                               'sorted by time', path=where, line=i + 1)
+        ts.append(t)
+        rows.append(vals)
+    t_arr = np.array(ts, dtype=np.int64)
+    v_arr = np.array(rows, dtype=np.float64).reshape(len(rows), ncol - 1)
+    return t_arr, v_arr
+
+
+def _table_fast(text: str, ncol: int,
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
+    """Whole-table parse (numpy for the values, exact integer times), or None when anything is
+    unusual (comments, blank lines, a bad value), so that the per-line parser names the line."""
+    lines = text.splitlines()
+    if not lines or '#' in text or not all(lines):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        try:
+            vals = np.fromstring(text, dtype=np.float64, sep=' ')
+        except (DeprecationWarning, ValueError):
+            return None
+    if vals.size != len(lines) * ncol or not np.all(np.isfinite(vals)):
+        return None
+    try:
+        t = np.array([seconds_to_ns(line.split(None, 1)[0]) for line in lines], np.int64)
+    except ValueError:
+        return None
+    if np.any(t[1:] < t[:-1]):
+        return None
+    return t, np.ascontiguousarray(vals.reshape(len(lines), ncol)[:, 1:])
+
+
+def _check_count(src: SequenceSource, name: str, key: str, n: int) -> None:
+    expected = meta_count(read_meta(src), key)
+    if expected is not None and expected != n:
+        raise DatasetError(f'has {n} lines but {META_FILE} records {expected}: the file is '
+                           'truncated or was edited', path=src.where(name))
+
+
+def read_imu(path: Path | str) -> ImuData:
+    """``imu.txt`` (``t ax ay az gx gy gz``) of a sequence folder or zip."""
+    with SequenceSource(path) as src:
+        t, v = _read_table(src, IMU_FILE, 't ax ay az gx gy gz')
+        _check_count(src, IMU_FILE, 'imu', t.size)
+    return ImuData(t=t, acc=np.ascontiguousarray(v[:, :3]), gyro=np.ascontiguousarray(v[:, 3:]))
+
+
+def read_groundtruth(path: Path | str) -> Trajectory:
+    """``groundtruth.txt`` (``t px py pz qx qy qz qw``) of a sequence folder or zip."""
+    with SequenceSource(path) as src:
+        t, v = _read_table(src, GROUNDTRUTH_FILE, 't px py pz qx qy qz qw')
+        _check_count(src, GROUNDTRUTH_FILE, 'groundtruth', t.size)
+    return Trajectory(t=t, pos=np.ascontiguousarray(v[:, :3]),
+                      quat=np.ascontiguousarray(v[:, 3:]))
+
+
+def read_calib(path: Path | str) -> CameraCalibration:
+    """``calib.txt`` (``fx fy cx cy k1 k2 p1 p2 k3``) plus the sensor size."""
+    with SequenceSource(path) as src:
+        width, height = source_sensor_size(src)
+        where = src.where(CALIB_FILE)
+        lines = [ln for ln in src.read_text(CALIB_FILE).split('\n') if ln.strip()]
+        if len(lines) != 1:
+            raise DatasetError(f'expected one line "fx fy cx cy k1 k2 p1 p2 k3", got '
+                               f'{len(lines)} non-empty lines', path=where)
+        parts = lines[0].split()
+        if len(parts) not in (4, 8, 9):
+            raise DatasetError(f'expected 9 numbers "fx fy cx cy k1 k2 p1 p2 k3" (or 4 without '
+                               f'distortion), got {len(parts)}', path=where, line=1)
+        try:
+            vals = [float(v) for v in parts]
+        except ValueError as err:
+            raise DatasetError(f'malformed calibration: {err}', path=where, line=1) from None
+    dist = tuple(vals[4:] + [0.0] * (9 - len(vals)))
+    return CameraCalibration(width=width, height=height, fx=vals[0], fy=vals[1], cx=vals[2],
+                             cy=vals[3], dist=(dist[0], dist[1], dist[2], dist[3], dist[4]))
+
+
+def read_sequence(path: Path | str) -> Sequence:
+    """A whole sequence in memory; ``imu``/``groundtruth`` are None when their file is absent."""
+    with SequenceSource(path) as src:
+        has_imu, has_gt = src.exists(IMU_FILE), src.exists(GROUNDTRUTH_FILE)
+    return Sequence(events=read_events(path), calib=read_calib(path),
+                    imu=read_imu(path) if has_imu else None,
+                    groundtruth=read_groundtruth(path) if has_gt else None)
