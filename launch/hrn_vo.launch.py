@@ -1,36 +1,78 @@
 """Launch the HRN odometry graph: packetizer_node → resonator_node [+ a bag player].
 
-Usage (ROS 2 Jazzy with this package built by colcon)::
+Usage (ROS 2 Jazzy with this package built by colcon, or the tools scripts/setup.sh installs)::
 
-    ros2 launch hrn_vo_ros hrn_vo.launch.py         # a live camera on /event_camera/events
+    ros2 launch hrn_vo_ros hrn_vo.launch.py         # a live camera on event_camera/events
     ros2 launch hrn_vo_ros hrn_vo.launch.py dataset:=shapes_translation use_imu:=true
     ros2 launch hrn_vo_ros hrn_vo.launch.py config:=/path/my.yaml bag:=/path/to/bag
+    ros2 launch hrn_vo_ros hrn_vo.launch.py namespace:=cam0 use_sim_time:=true
 
-Arguments:
-    dataset: name of a parameter file in share/hrn_vo_ros/config (without .yaml).
-    config: a parameter file path; overrides ``dataset``.
-    events_topic: the EventPacket topic of the camera driver or bag.
-    camera_info_topic: the CameraInfo topic (read when the config rectifies without calib.*).
-    imu_topic: the sensor_msgs/Imu topic (used with use_imu:=true).
-    use_imu: fuse the gyro (sets the resonator's ``imu.enabled``).
-    focal_px: focal length in frame pixels, fx / downsample (about 79.6 for a DAVIS240C at 2.5),
-        for the IMU prediction and the sphere correction of shapes_rotation; 0 keeps the
-        config's value (without one the resonator node runs without the sphere correction).
-    publish_tf: publish odom → base_link on /tf.
-    bag: a ROS 2 bag to replay with this package's bag player (empty: none).
-    rate: replay rate of the bag player.
+``ros2 launch hrn_vo_ros hrn_vo.launch.py --show-args`` lists the arguments with their
+descriptions. Topic arguments are resolved in the graph's namespace unless absolute; the
+resonator always reads the frames of the packetizer in its own namespace. Under a namespace the
+parameter sections of the config (``packetizer_node:``, ``resonator_node:``, ``/**:``) apply to
+the namespaced nodes.
 
 Machines without ``launch`` start the same graph with ``hrn-vo demo`` (hrn_vo_ros/cli/graph.py).
 """
 
 import os
+import tempfile
 
 from ament_index_python.packages import get_package_share_directory
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+import yaml
 
 from launch import LaunchDescription
+
+ARGUMENTS = [
+    ('dataset', 'shapes_rotation',
+     'name of a parameter file in share/hrn_vo_ros/config (without .yaml)'),
+    ('config', '', 'a parameter file path; overrides dataset'),
+    ('namespace', '', 'ROS namespace of the nodes (empty: the root namespace)'),
+    ('events_topic', 'event_camera/events',
+     'the event_camera_msgs/EventPacket topic of the camera driver or bag'),
+    ('camera_info_topic', 'event_camera/camera_info',
+     'the CameraInfo topic (read when the config rectifies without calib.*)'),
+    ('imu_topic', 'imu', 'the sensor_msgs/Imu topic (used with use_imu:=true)'),
+    ('use_imu', 'false', "fuse the gyro (sets the resonator's imu.enabled)"),
+    ('focal_px', '0.0',
+     'focal length in frame pixels, fx / downsample (about 79.6 for a DAVIS240C at 2.5), for '
+     "the IMU prediction and the sphere correction; 0 keeps the config's value"),
+    ('publish_tf', 'false', 'publish odom -> base_link on /tf'),
+    ('use_sim_time', 'false',
+     'run the nodes on the /clock topic (the bag player of bag:= then publishes it)'),
+    ('bag', '', "a ROS 2 bag to replay with this package's bag player (empty: none)"),
+    ('rate', '1.0', 'replay rate of the bag player'),
+]
+
+
+def _flag(context, name):
+    return LaunchConfiguration(name).perform(context).strip().lower() in ('true', '1', 'yes')
+
+
+def _node_params(config, name, namespace):
+    """The params file for node ``name``: ``config`` itself, or a copy keyed for ``namespace``.
+
+    ROS matches a section key without a namespace (``packetizer_node:``) only to a node in the
+    root namespace, so under a namespace the sections of this node are merged (``/**`` first)
+    into one section keyed by the node's full name.
+    """
+    if not namespace.strip('/'):
+        return config
+    with open(config) as f:
+        doc = yaml.safe_load(f) or {}
+    full = '/' + namespace.strip('/') + '/' + name
+    params = {}
+    for key in ('/**', '/**/' + name, name, '/' + name, full):
+        section = doc.get(key) or {}
+        params.update(section.get('ros__parameters') or {})
+    with tempfile.NamedTemporaryFile('w', prefix=f'hrn_vo_{name}_', suffix='.yaml',
+                                     delete=False) as out:
+        yaml.safe_dump({full: {'ros__parameters': params}}, out)
+    return out.name
 
 
 def _nodes(context, *args, **kwargs):
@@ -39,46 +81,51 @@ def _nodes(context, *args, **kwargs):
     if not config:
         dataset = LaunchConfiguration('dataset').perform(context)
         config = os.path.join(share, 'config', dataset + '.yaml')
-    use_imu = LaunchConfiguration('use_imu').perform(context).lower() == 'true'
-    publish_tf = LaunchConfiguration('publish_tf').perform(context).lower() == 'true'
-    events_topic = LaunchConfiguration('events_topic').perform(context)
-    camera_info_topic = LaunchConfiguration('camera_info_topic').perform(context)
-    imu_topic = LaunchConfiguration('imu_topic').perform(context)
-    bag = LaunchConfiguration('bag').perform(context)
-    resonator = {'imu.enabled': use_imu, 'publish_tf': publish_tf}
+    namespace = LaunchConfiguration('namespace').perform(context)
+    sim_time = {'use_sim_time': _flag(context, 'use_sim_time')}
+    resonator = {'imu.enabled': _flag(context, 'use_imu'),
+                 'publish_tf': _flag(context, 'publish_tf')}
     focal = float(LaunchConfiguration('focal_px').perform(context))
     if focal > 0.0:
         resonator['focal_px'] = focal
+    topic = {name: LaunchConfiguration(name).perform(context)
+             for name in ('events_topic', 'camera_info_topic', 'imu_topic')}
     actions = [
         Node(package='hrn_vo_ros', executable='packetizer_node', name='packetizer_node',
-             parameters=[config], remappings=[('~/events', events_topic),
-                                                      ('~/camera_info', camera_info_topic)],
+             namespace=namespace,
+             parameters=[_node_params(config, 'packetizer_node', namespace), sim_time],
+             remappings=[('~/events', topic['events_topic']),
+                         ('~/camera_info', topic['camera_info_topic'])],
              output='screen'),
         Node(package='hrn_vo_ros', executable='resonator_node', name='resonator_node',
-             parameters=[config, resonator],
-             remappings=[('~/frames', '/packetizer_node/frames'), ('~/imu', imu_topic)],
+             namespace=namespace,
+             parameters=[_node_params(config, 'resonator_node', namespace), resonator,
+                         sim_time],
+             # relative: the packetizer of this namespace
+             remappings=[('~/frames', 'packetizer_node/frames'),
+                         ('~/imu', topic['imu_topic'])],
              output='screen'),
     ]
+    bag = LaunchConfiguration('bag').perform(context)
     if bag:
-        rate = LaunchConfiguration('rate').perform(context)
+        rate = float(LaunchConfiguration('rate').perform(context))
         actions.append(Node(package='hrn_vo_ros', executable='bag_player', name='bag_player',
-                            parameters=[{'bag': bag, 'rate': float(rate),
-                                         'wait_for_subscribers': 1}], output='screen'))
+                            namespace=namespace,
+                            # with use_sim_time the player publishes /clock (runs on wall time)
+                            parameters=[{'bag': bag, 'rate': rate, 'wait_for_subscribers': 1,
+                                         'clock': sim_time['use_sim_time']}],
+                            # the drivers' topics, as bags record them, to the graph's inputs
+                            remappings=[('/event_camera/events', topic['events_topic']),
+                                        ('/event_camera/camera_info',
+                                         topic['camera_info_topic']),
+                                        ('/imu', topic['imu_topic'])],
+                            output='screen'))
     return actions
 
 
 def generate_launch_description():
-    """The launch description (arguments documented in the module docstring)."""
-    return LaunchDescription([
-        DeclareLaunchArgument('dataset', default_value='shapes_rotation'),
-        DeclareLaunchArgument('config', default_value=''),
-        DeclareLaunchArgument('events_topic', default_value='/event_camera/events'),
-        DeclareLaunchArgument('camera_info_topic', default_value='/event_camera/camera_info'),
-        DeclareLaunchArgument('imu_topic', default_value='/imu'),
-        DeclareLaunchArgument('use_imu', default_value='false'),
-        DeclareLaunchArgument('focal_px', default_value='0.0'),
-        DeclareLaunchArgument('publish_tf', default_value='false'),
-        DeclareLaunchArgument('bag', default_value=''),
-        DeclareLaunchArgument('rate', default_value='1.0'),
-        OpaqueFunction(function=_nodes),
-    ])
+    """The launch description: the arguments of ARGUMENTS, then the nodes."""
+    return LaunchDescription(
+        [DeclareLaunchArgument(name, default_value=default, description=description)
+         for name, default, description in ARGUMENTS]
+        + [OpaqueFunction(function=_nodes)])

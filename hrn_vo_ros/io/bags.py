@@ -8,7 +8,9 @@
   ``DST``; it refuses to overwrite. Each topic records its offered QoS profile
   (:data:`EVENTS_QOS` best-effort like the camera drivers, :data:`SENSOR_QOS`,
   :data:`RELIABLE_QOS`).
-* :func:`open_bag` opens a ROS 2 bag (sqlite3 or MCAP) for reading; ``.partial`` paths, missing
+* :func:`open_bag` opens a ROS 2 bag (sqlite3 or MCAP) for reading: metadata versions 5 to 9
+  (rosbag2 of Foxy to Jazzy), with an empty ``storage_identifier`` (older rosbag2 writes one)
+  inferred from the storage files' suffixes (``.mcap``, ``.db3``); ``.partial`` paths, missing
   or corrupt bags raise :class:`~hrn_vo_ros.errors.BagError`.
 * :func:`iter_bag_events` streams the decoded events of an EventPacket topic (any encoding
   :mod:`hrn_vo_ros.io.eventpacket` knows) or a legacy ``dvs_msgs/msg/EventArray`` topic.
@@ -40,9 +42,11 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2.reader import DirectoryReader
 from rosbags.typesys import get_types_from_msg, Stores
 from rosbags.typesys import get_typestore as _get_typestore
 from rosbags.typesys.store import Typestore
+import yaml
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.errors import BagError, DecodeError
@@ -257,6 +261,12 @@ def _pad(buf: bytearray, align: int) -> None:
 
 # ------------------------------------------------------------------------------------ reading
 
+METADATA_VERSIONS = range(5, 10)
+"""rosbag2 metadata versions :func:`open_bag` reads (5: Foxy/Galactic ... 9: Jazzy)."""
+STORAGE_SUFFIXES = {'.mcap': 'mcap', '.db3': 'sqlite3'}
+"""Storage identifier of each storage file suffix, for metadata that leaves it empty."""
+
+
 def _check_bag_path(path: Path) -> None:
     if any(part.endswith('.partial') for part in path.resolve().parts):
         raise BagError(f'{path} is an unfinished bag (".partial"): an interrupted conversion '
@@ -265,6 +275,39 @@ def _check_bag_path(path: Path) -> None:
         raise BagError(f'{path} does not exist: give a ROS 2 bag directory')
     if path.is_dir() and not (path / 'metadata.yaml').is_file():
         raise BagError(f'{path} has no metadata.yaml: not a complete ROS 2 bag directory')
+
+
+def bag_storage(path: Path | str) -> str:
+    """The storage identifier of a bag directory (``'mcap'`` or ``'sqlite3'``).
+
+    It is the metadata's ``storage_identifier``, or, when that is empty or missing, the one
+    the storage files' suffixes name.
+
+    Raises:
+        BagError: on unreadable metadata, a metadata version outside 5 to 9, or storage files
+            of no or mixed known kinds.
+    """
+    meta_path = Path(path) / 'metadata.yaml'
+    try:
+        doc = yaml.safe_load(meta_path.read_text())
+        info = doc['rosbag2_bagfile_information']
+        version = int(info['version'])
+        files = [str(f) for f in info.get('relative_file_paths') or []]
+        storage = str(info.get('storage_identifier') or '')
+    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as err:
+        raise BagError(f'{meta_path}: unreadable bag metadata ({type(err).__name__}: {err})'
+                       ) from err
+    if version not in METADATA_VERSIONS:
+        raise BagError(f'{meta_path}: rosbag2 metadata version {version}; this reader opens '
+                       f'versions {METADATA_VERSIONS[0]} to {METADATA_VERSIONS[-1]}')
+    if storage:
+        return storage
+    kinds = {STORAGE_SUFFIXES.get(Path(f).suffix) for f in files}
+    if len(kinds) != 1 or None in kinds:
+        raise BagError(f'{meta_path}: empty storage_identifier and storage files '
+                       f'{files or "(none)"} are not all .mcap or all .db3: cannot tell the '
+                       'storage')
+    return str(kinds.pop())
 
 
 class BagReader(Reader):
@@ -280,12 +323,29 @@ class BagReader(Reader):
 def open_bag(path: Path | str) -> BagReader:
     """A ROS 2 bag opened for reading: ``with open_bag(path) as reader: ...``.
 
+    Args:
+        path: A bag directory (metadata versions 5 to 9, see :func:`bag_storage`) or a single
+            ``.mcap`` / ``.db3`` storage file.
+
     Raises:
-        BagError: for ``.partial`` paths, missing, incomplete or corrupt bags.
+        BagError: for ``.partial`` paths, missing, incomplete or corrupt bags, unsupported
+            metadata versions or storages.
     """
     path = Path(path)
     _check_bag_path(path)
-    reader = BagReader(path)
+    try:
+        reader = BagReader(path)
+    except Exception as err:
+        raise BagError(f'{path}: not a ROS 2 bag ({type(err).__name__}: {err})') from err
+    if path.is_dir() and isinstance(reader.storage, DirectoryReader):
+        storage = bag_storage(path)
+        plugins = DirectoryReader.STORAGE_PLUGINS
+        if storage not in plugins:
+            raise BagError(f'{path}: storage {storage!r} is not supported; use a bag stored as '
+                           f'{" or ".join(plugins)}')
+        # rosbags looks the metadata's storage_identifier up in this table: an empty one
+        # resolves to the storage the files name
+        reader.storage.STORAGE_PLUGINS = {**plugins, '': plugins[storage]}
     try:
         reader.open()
     except Exception as err:  # rosbags raises its own errors and sqlite/mcap ones
