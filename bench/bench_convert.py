@@ -1,6 +1,7 @@
 """Throughput of dataset conversion and of the event codecs, measured side by side in one run.
 
     scripts/run.sh python bench/bench_convert.py [--seconds 20] [--simulate] [--repeats 3]
+    scripts/run.sh python bench/bench_convert.py --smoke    # 0.5 s, one repeat: only that it runs
 
 Builds a 20 s sequence (default: synthetic events at ~350 k/s, the rate of a simulated rotation
 sequence, ~7 M events; ``--simulate`` runs the project's simulator instead, which is slower),
@@ -30,17 +31,29 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
 from hrn_vo_ros.core.events.arrays import EventChecksum
-from hrn_vo_ros.core.events.sequence import random_sequence
+from hrn_vo_ros.core.events.sequence import random_sequence, Sequence
 from hrn_vo_ros.io import bags, convert, ecd, eventpacket, ros1bag
 
 
 def timed(fn: object, repeats: int) -> float:
+    """Median wall time of ``repeats`` calls of ``fn``."""
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()  # type: ignore[operator]
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
+
+
+def make_sequence(args: argparse.Namespace) -> Sequence:
+    """The benchmark's sequence: simulated (``--simulate``) or synthetic events."""
+    if not args.simulate:
+        return random_sequence(np.random.default_rng(0), args.seconds, args.rate, stamps='us')
+    from hrn_vo_ros.core.sim.simulator import simulate
+    t0 = time.perf_counter()
+    seq = simulate('rotation', args.seconds, seed=0)
+    print(f'simulated {args.seconds:g} s rotation in {time.perf_counter() - t0:.1f} s')
+    return seq
 
 
 def main() -> None:
@@ -50,14 +63,12 @@ def main() -> None:
     ap.add_argument('--rate', type=float, default=350_000.0, help='synthetic events/s')
     ap.add_argument('--simulate', action='store_true', help='use the simulator (rotation)')
     ap.add_argument('--repeats', type=int, default=3)
+    ap.add_argument('--smoke', action='store_true',
+                    help='0.5 s of events, one repeat: only that it runs')
     args = ap.parse_args()
-    if args.simulate:
-        from hrn_vo_ros.core.sim.simulator import simulate
-        t0 = time.perf_counter()
-        seq = simulate('rotation', args.seconds, seed=0)
-        print(f'simulated {args.seconds:g} s rotation in {time.perf_counter() - t0:.1f} s')
-    else:
-        seq = random_sequence(np.random.default_rng(0), args.seconds, args.rate, stamps='us')
+    if args.smoke:
+        args.seconds, args.repeats = min(args.seconds, 0.5), 1
+    seq = make_sequence(args)
     n = len(seq.events)
     work = Path(tempfile.mkdtemp(prefix='bench_convert_'))
     try:

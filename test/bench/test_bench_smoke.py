@@ -1,0 +1,85 @@
+"""Every benchmark in ``bench/`` runs to the end at tiny sizes (no figure is checked).
+
+Each script runs as ``scripts/run.sh python bench/X.py`` would (a subprocess of this
+interpreter, the working tree on ``PYTHONPATH``), with its ``--smoke`` option or the smallest
+sizes its options allow; the test asserts exit 0, the last line of its table and no failed
+step, so that a benchmark cannot rot unnoticed. The figures themselves are meaningless at these
+sizes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / 'bench'
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark run: its arguments (``{work}``: a scratch folder) and what it must print."""
+
+    script: str
+    args: tuple[str, ...]
+    expect: tuple[str, ...]
+    timeout: float = 120.0
+
+
+CASES = {
+    'convert': Case('bench_convert.py', ('--smoke',),
+                    ('convert to MCAP', 'evt3 decode', 'ratios: convert/parse')),
+    'hrn_speed': Case('bench_hrn_speed.py', ('--smoke',),
+                      ('fast path', 'dense path', 'ratio dense/fast',
+                       'rectify equidistant (')),
+    # 1 s is the shortest simulated sequence; 60 frames keep the spiking emulation short (the
+    # geodesic columns then read "not evaluated": the lag search needs > 2 s)
+    'spiking': Case('bench_spiking.py', ('--seeds', '1', '--seconds', '1', '--frames', '60'),
+                    ('seed   1: 60 frames', 'frames/s (median per-frame time)')),
+    # 2.5 s: the evaluation's lag search needs more than 2 s of overlap
+    'accuracy': Case('bench_accuracy.py', ('--kinds', 'rotation', '--seeds', '1', '--seconds',
+                                           '2.5', '--work', '{work}'),
+                     ('Accuracy on simulated 2.5 s sequences', 'within target',
+                      'wall time rotation'), timeout=300.0),
+    'latency': Case('bench_latency.py', ('--smoke', '--work', '{work}'),
+                    ('frames expected', 'end-to-end latency', 'targets (no drop'),
+                    timeout=180.0),
+    # its --smoke runs every kind and method (minutes): one kind, the HRN only (the spiking
+    # backend and the baseline run in the cases above); 6 s is the shortest the protocol's
+    # calibration segment evaluates
+    'robustness': Case('bench_robustness.py', ('--smoke', '--kinds', 'rotation', '--methods',
+                                               'hrn', '--jobs', '1'),
+                       ('1 sequences in', 'tracked  time ok', 'rotation     hrn')),
+}
+SLOW = {'accuracy', 'latency', 'robustness'}
+ROS = {'latency'}
+
+
+def _param(name: str) -> object:
+    marks = ([pytest.mark.slow] if name in SLOW else []) + ([pytest.mark.ros] if name in ROS
+                                                           else [])
+    return pytest.param(name, marks=marks, id=name)
+
+
+@pytest.mark.parametrize('name', [_param(n) for n in CASES])
+def test_bench_runs_to_the_end(name: str, tmp_path: Path) -> None:
+    case = CASES[name]
+    script = BENCH / case.script
+    if not script.exists():
+        pytest.skip(f'{script.relative_to(ROOT)} does not exist (yet)')
+    env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get('PYTHONPATH')])])}
+    args = [a.replace('{work}', str(tmp_path / 'work')) for a in case.args]
+    proc = subprocess.run([sys.executable, str(script), *args], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=case.timeout, check=False)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, f'{case.script} exited with {proc.returncode}:\n{out[-4000:]}'
+    missing = [e for e in case.expect if e not in proc.stdout]
+    assert not missing, f'{case.script} did not print {missing}:\n{out[-4000:]}'
+    for bad in ('Traceback', 'FAILED'):
+        assert bad not in out, f'{case.script} printed {bad!r}:\n{out[-4000:]}'
