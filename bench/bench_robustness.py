@@ -1,0 +1,323 @@
+"""Robustness benchmark: HRN, HRN + IMU, spiking backend and the classical baseline on randomized
+simulated sequences (:mod:`hrn_vo_ros.core.sim.family`).
+
+For each kind and each of N fresh draws (seeds 10000 on; ``--tuning`` uses the tuning draws
+0-99 instead), a worker simulates the draw, makes the event frames once with the kind's config
+(``config/<kind>.yaml`` via :data:`bench_accuracy.CASES`, the packetizer rectifying with the
+draw's calibration, as ``hrn-vo run``) and runs every method on the same frames; the estimates
+are evaluated with the paper's protocol (:func:`hrn_vo_ros.core.evaluation.protocol.evaluate`).
+Workers run in parallel over ``--jobs`` processes (default: all cores), each single-threaded.
+
+Definitions (per sequence, on the per-sample error of the protocol's calibrated estimate,
+i.e. after its calibration fit, over all samples from 0.5 s on):
+
+* **lost**: the error stays above the threshold (10° geodesic for rotation, 5 cm position for
+  translation and arm) for more than 0.5 s; a sequence is *tracked* if it is never lost, or if
+  the protocol cannot evaluate it (it then counts as lost);
+* **median error**: the protocol's metric on its evaluated part (median geodesic angle or
+  median position error); the table gives the median and p90 over sequences and the worst;
+* **silent loss**: a loss during which the estimator reports ``state == 'tracking'`` for most
+  of the lost samples; 'n/a' while an estimator's ``Estimate`` has no ``state`` (the HRN and the
+  baseline do not report one yet; the column fills in once they do);
+* **re-localisation time**: from the start of a loss to the first moment after which the error
+  stays below the threshold for 0.5 s; losses that never recover count in "never".
+
+Examples::
+
+    scripts/run.sh python bench/bench_robustness.py --smoke
+    scripts/run.sh python bench/bench_robustness.py --kinds rotation translation -n 6 \
+        --seconds 10 --methods hrn hrn_imu baseline --csv build/robust.csv --plot build/robust.png
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ[_var] = '1'     # each worker single-threaded (set before numpy is imported)
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+from dataclasses import asdict, dataclass  # noqa: E402
+import math  # noqa: E402
+import multiprocessing  # noqa: E402
+from pathlib import Path  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / 'bench'))
+
+from bench_accuracy import CASES  # noqa: E402
+
+from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
+from hrn_vo_ros.core.hrn.backends import make_backend  # noqa: E402
+from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402
+from hrn_vo_ros.core.sim.family import draw, fresh_seeds, simulate_draw, tuning_seeds  # noqa: E402
+from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
+from hrn_vo_ros.io import ecd  # noqa: E402
+from hrn_vo_ros.io.yamlconfig import dataset_configs  # noqa: E402
+
+KINDS = ('rotation', 'translation', 'arm')
+METHODS = ('hrn', 'hrn_imu', 'spiking', 'baseline')
+THRESHOLD = {'rotation': 10.0, 'translation': 0.05, 'arm': 0.05}   # deg, m, m
+UNIT = {'rotation': 'deg', 'translation': 'm', 'arm': 'm'}
+METRIC = {'rotation': 'median_angle_deg', 'translation': 'median_pos_m', 'arm': 'median_pos_m'}
+LOST_S = 0.5        # a loss lasts longer than this
+START_S = 0.5       # losses are looked for from this time on
+RECOVER_S = 0.5     # re-localised: below the threshold for this long
+
+
+@dataclass
+class Row:
+    """One method on one sequence."""
+
+    kind: str
+    seed: int
+    method: str
+    seconds: float
+    events_per_s: float
+    peak: float
+    median_err: float
+    lost: bool
+    lost_s: float
+    losses: int
+    silent: int | None
+    reloc_s: str          # ';'-separated re-localisation times, 'never' for unrecovered
+    wall_s: float
+    note: str
+    draw: str
+
+
+def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
+    """Packetizer and resonator configs as ``hrn-vo run`` makes them for this sequence."""
+    with tempfile.TemporaryDirectory() as tmp:        # calib.txt + meta.json, one event
+        stub = ecd.write_sequence(Path(tmp) / 'stub', Sequence(seq.events[:1], seq.calib))
+        over = {'imu.enabled': True} if imu else {}
+        dc = dataset_configs(ROOT / 'config' / CASES[kind].config, stub, resonator=over)
+    return dc.packetizer, dc.resonator
+
+
+def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
+         ) -> tuple[EstimateSeries, list[str] | None]:
+    """Run one method over the frames; returns the estimate and the states (None: no state)."""
+    _, rcfg = _configs(kind, seq, method == 'hrn_imu')
+    gyro = None
+    if method == 'baseline':
+        est: Any = PhaseCorrelationBaseline(config_like(rcfg))
+    else:
+        est = make_backend(rcfg, rng=np.random.default_rng(0),
+                           backend='spiking' if method == 'spiking' else 'float')
+        if method == 'hrn_imu':
+            assert seq.imu is not None
+            rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
+            gyro = GyroIntegrator.from_imu(seq.imu, rot)
+    rows, states = [], []
+    prev = None
+    for i in range(len(t)):
+        delta = None
+        if gyro is not None:
+            angle = gyro.angle_at(int(t[i]))
+            delta = None if prev is None else angle - prev
+            prev = angle
+        e = est.step(imgs[i], int(t[i]), gyro_delta=delta)
+        rows.append((e.h, e.v, e.r, e.z))
+        states.append(getattr(e, 'state', None))
+    arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
+    est_s = EstimateSeries(np.asarray(t, dtype=np.int64), arr[:, 0], arr[:, 1], arr[:, 2],
+                           arr[:, 3] if rcfg.scale.enabled else None)
+    return est_s, (None if any(s is None for s in states) else [str(s) for s in states])
+
+
+def losses(t_s: np.ndarray, err: np.ndarray, thr: float
+           ) -> list[tuple[int, int, float | None]]:
+    """Lost episodes: (first, last sample index, re-localisation time s or None)."""
+    bad = err > thr
+    out = []
+    i, n = 0, len(err)
+    while i < n:
+        if not bad[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and bad[j + 1]:
+            j += 1
+        if t_s[j] - t_s[i] > LOST_S:
+            reloc = None
+            k = j + 1
+            while k < n:          # the first good stretch of RECOVER_S after the episode
+                m = k
+                while m + 1 < n and not bad[m + 1]:
+                    m += 1
+                if t_s[m] - t_s[k] >= RECOVER_S:
+                    reloc = float(t_s[k] - t_s[i])
+                    break
+                k = m + 1
+                while k < n and bad[k]:
+                    k += 1
+            out.append((i, j, reloc))
+        i = j + 1
+    return out
+
+
+def job(task: tuple[str, int, float, tuple[str, ...]]) -> list[Row]:
+    """Simulate one draw and run and evaluate every method on it (in a worker process)."""
+    kind, seed, seconds, methods = task
+    d = draw(kind, seed)
+    seq = simulate_draw(d, seconds)
+    info = describe_motion(seq)
+    peak = info['peak_deg_s'] if kind == 'rotation' else info['peak_m_s']
+    pcfg, _ = _configs(kind, seq, False)
+    if pcfg.rectify != 'none':
+        pcfg = with_calibration(pcfg, seq.calib)
+    t, imgs = frames_from_events(seq.events, pcfg)
+    assert seq.groundtruth is not None
+    out = []
+    for method in methods:
+        t0 = time.perf_counter()
+        note, med, lost, lost_s, eps, silent = '', math.inf, True, seconds, [], None
+        try:
+            est, states = _run(method, kind, seq, t, imgs)
+            res = evaluate(seq.groundtruth, est, kind)
+            s = res.series
+            keep = s.t_s >= START_S
+            t_s, err = s.t_s[keep], s.err[keep]
+            med = res.metrics[METRIC[kind]]
+            eps = losses(t_s, err, THRESHOLD[kind])
+            lost = bool(eps)
+            lost_s = float(sum(t_s[j] - t_s[i] for i, j, _ in eps))
+            if states is not None:
+                st = np.asarray(states)[: len(s.t_s)][keep]
+                silent = sum(np.mean(st[i:j + 1] == 'tracking') > 0.5 for i, j, _ in eps)
+        except Exception as err:      # a failed evaluation counts as lost
+            note = f'{type(err).__name__}: {str(err)[:80]}'
+        reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
+        out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
+                       len(eps), silent, reloc, time.perf_counter() - t0, note, d.summary()))
+    return out
+
+
+def _fmt(v: float, kind: str) -> str:
+    if not math.isfinite(v):
+        return 'fail'
+    return f'{v:.2f}°' if UNIT[kind] == 'deg' else f'{100 * v:.2f}cm'
+
+
+def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
+    """The summary lines per kind and method."""
+    lines = [f'lost: error > 10° (rotation) / 5 cm (translation, arm) for > {LOST_S:g} s, '
+             f'on the calibrated estimate from {START_S:g} s on; tracked = never lost',
+             f'{"kind":12s} {"method":9s} {"tracked":>8s} {"time ok":>8s} {"median":>8s} '
+             f'{"p90":>8s} {"worst":>16s} {"silent":>7s} {"reloc med":>9s} {"never":>6s}']
+    for kind in kinds:
+        for method in methods:
+            rs = [r for r in rows if r.kind == kind and r.method == method]
+            if not rs:
+                continue
+            meds = np.array([r.median_err for r in rs])
+            tracked = sum(not r.lost for r in rs)
+            span = np.array([max(r.lost_s, 0.0) for r in rs])
+            worst = rs[int(np.argmax(meds))]
+            silent = ('n/a' if any(r.silent is None for r in rs)
+                      else str(sum(int(r.silent or 0) for r in rs)))
+            rel = [float(x) for r in rs for x in r.reloc_s.split(';') if x and x != 'never']
+            never = sum(x == 'never' for r in rs for x in r.reloc_s.split(';'))
+            finite = meds[np.isfinite(meds)]
+            med = float(np.median(meds)) if len(finite) else math.inf
+            p90 = float(np.percentile(meds, 90)) if np.all(np.isfinite(meds)) else math.inf
+            dur = np.array([max(r.seconds - START_S, 1e-9) for r in rs])
+            ok = float(np.mean(1.0 - np.clip(span / dur, 0.0, 1.0)))
+            lines.append(f'{kind:12s} {method:9s} {tracked:>3d}/{len(rs):<4d} {100 * ok:7.1f}% '
+                         f'{_fmt(med, kind):>8s} {_fmt(p90, kind):>8s} '
+                         f'{_fmt(worst.median_err, kind) + f" (s{worst.seed})":>16s} '
+                         f'{silent:>7s} '
+                         f'{(f"{np.median(rel):.2f} s" if rel else "-"):>9s} {never:>6d}')
+    return lines
+
+
+def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:
+    """Per kind, the per-sequence median errors of every method (strip + box plot)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(kinds), figsize=(4.5 * len(kinds), 3.8), squeeze=False)
+    for ax, kind in zip(axes[0], kinds, strict=True):
+        data = []
+        for method in methods:
+            v = np.array([r.median_err for r in rows if r.kind == kind and r.method == method])
+            v = np.where(np.isfinite(v), v, np.nan)
+            data.append((v * (1 if kind == 'rotation' else 100))[~np.isnan(v)])
+        ax.boxplot(data, showfliers=False)
+        for i, v in enumerate(data):
+            ax.plot(np.full(len(v), i + 1.0) + np.linspace(-0.15, 0.15, len(v)), v, '.',
+                    alpha=0.7)
+        ax.axhline(THRESHOLD[kind] * (1 if kind == 'rotation' else 100), ls='--', c='r', lw=0.8)
+        ax.set_xticks(range(1, len(methods) + 1), methods)
+        ax.set_yscale('log')
+        ax.set_title(kind)
+        ax.set_ylabel('median error (deg)' if kind == 'rotation' else 'median error (cm)')
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; returns 0 (figures are printed, not asserted)."""
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('--kinds', nargs='+', choices=KINDS, default=list(KINDS))
+    p.add_argument('--methods', nargs='+', choices=METHODS, default=list(METHODS))
+    p.add_argument('-n', type=int, default=30, help='draws per kind (default 30)')
+    p.add_argument('--seconds', type=float, default=15.0, help='per sequence (default 15)')
+    p.add_argument('--tuning', action='store_true',
+                   help='use the tuning draws (seeds 0-99) instead of the fresh ones (10000+)')
+    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1, help='worker processes')
+    p.add_argument('--smoke', action='store_true', help='tiny run: 1 draw per kind, 6 s')
+    p.add_argument('--csv', type=Path, default=None, help='write the per-sequence rows here')
+    p.add_argument('--plot', type=Path, default=None, help='write an error-distribution PNG')
+    args = p.parse_args(argv)
+    if args.smoke:
+        args.n, args.seconds = 1, 6.0
+    seeds = tuning_seeds(args.n) if args.tuning else fresh_seeds(args.n)
+    tasks = [(k, s, args.seconds, tuple(args.methods)) for k in args.kinds for s in seeds]
+    print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
+          f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs',
+          flush=True)
+    t0 = time.perf_counter()
+    rows: list[Row] = []
+    with multiprocessing.get_context('spawn').Pool(args.jobs) as pool:
+        for out in pool.imap_unordered(job, tasks):
+            rows += out
+            r0 = out[0]
+            print(f'  {r0.kind} {r0.seed}: {r0.events_per_s / 1e3:.0f} k ev/s, peak '
+                  f'{r0.peak:.2f}; ' + ', '.join(
+                      f'{r.method} {_fmt(r.median_err, r.kind)}{" LOST" if r.lost else ""}'
+                      for r in out), flush=True)
+    rows.sort(key=lambda r: (KINDS.index(r.kind), r.seed, METHODS.index(r.method)))
+    print(f'\n{len(tasks)} sequences in {time.perf_counter() - t0:.0f} s')
+    for line in table(rows, args.kinds, args.methods):
+        print(line)
+    if args.csv is not None:
+        args.csv.parent.mkdir(parents=True, exist_ok=True)
+        with open(args.csv, 'w', newline='') as f:
+            w = csv.DictWriter(f, fieldnames=list(asdict(rows[0])))
+            w.writeheader()
+            for r in rows:
+                w.writerow(asdict(r))
+        print(f'rows -> {args.csv}')
+    if args.plot is not None:
+        plot(rows, args.kinds, args.methods, args.plot)
+        print(f'plot -> {args.plot}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
