@@ -1,4 +1,4 @@
-"""Accuracy benchmark: HRN vs. the classical baseline on simulated sequences (issue 4 acceptance).
+"""Accuracy benchmark: HRN vs. the classical baseline on simulated sequences (acceptance).
 
 For each kind (rotation, rotation with IMU, translation, arm) and each held-out seed (101, 102,
 103 by default; the HRN was tuned on seeds 1-3), the script
@@ -17,7 +17,7 @@ For each kind (rotation, rotation with IMU, translation, arm) and each held-out 
    protocol),
 
 then prints one table: median errors per seed and kind, HRN vs. baseline, the floor, the
-issue's targets, and the paper's numbers on real data for reference. Everything is measured in
+accuracy targets, and the paper's numbers on real data for reference. Everything is measured in
 the same run.
 
 The floor is what the protocol charges an estimator that reads every frame perfectly: it maps
@@ -47,6 +47,7 @@ Examples::
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
 import json
@@ -57,15 +58,14 @@ import statistics
 import subprocess
 import sys
 import time
-
-import numpy as np
+from typing import cast
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
-from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, ROTATION_CONVENTIONS  # noqa: E402
-from hrn_vo_ros.core.events.frames import Packetizer, with_calibration  # noqa: E402
+from hrn_vo_ros.core.evaluation.protocol import ROTATION_CONVENTIONS  # noqa: E402
+from hrn_vo_ros.core.evaluation.series import EstimateSeries  # noqa: E402
 from hrn_vo_ros.core.sim.simulator import (  # noqa: E402
     optical_axis_estimate,
     PLANE_Z,
@@ -75,6 +75,7 @@ from hrn_vo_ros.core.sim.simulator import (  # noqa: E402
 from hrn_vo_ros.errors import ConfigError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
 from hrn_vo_ros.io.estimates import write_estimates  # noqa: E402
+from hrn_vo_ros.io.pipeline import dataset_pipeline, run_dataset  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs  # noqa: E402
 
 
@@ -152,25 +153,16 @@ def run_hrn(case: Case, dataset: Path, out: Path) -> float:
 
 
 def run_baseline(case: Case, dataset: Path, out: Path, sphere: bool = False) -> float:
-    """The baseline on the same frames as ``hrn-vo run`` (same packetizer settings), with the
-    sphere correction only if ``sphere`` and the config enables it for the HRN."""
+    """The baseline on the same frames as ``hrn-vo run`` (same packetizer settings, the same
+    pipeline), with the sphere correction only if ``sphere`` and the config enables it for the
+    HRN."""
     t0 = time.perf_counter()
     dc = dataset_configs(ROOT / 'config' / case.config, dataset)   # as hrn-vo run
-    pcfg = dc.packetizer                     # (dc.resonator already has the frame size)
-    bcfg = config_like(dc.resonator)
+    bcfg = config_like(dc.resonator)         # (dc.resonator already has the frame size)
     bcfg = replace(bcfg, sphere=bcfg.sphere and sphere)
-    packetizer = Packetizer(with_calibration(pcfg, ecd.read_calib(dataset)))
-    width, height = pcfg.sensor_width, pcfg.sensor_height
-    base = PhaseCorrelationBaseline(bcfg)
-    rows = []
-    for batch in ecd.iter_events(dataset, sensor_size=(width, height)):
-        for frame in packetizer.push(batch):
-            e = base.step(frame.image, frame.t_ns)
-            rows.append((frame.t_ns, e.h, e.v, e.r, e.z))
-    arr = np.array([r[1:] for r in rows], dtype=np.float64)
-    est = EstimateSeries(np.array([r[0] for r in rows], dtype=np.int64), arr[:, 0], arr[:, 1],
-                         arr[:, 2], arr[:, 3] if bcfg.scale else None)
-    write_estimates(out, est)
+    pipe = dataset_pipeline(dataset, dc.packetizer, partial(PhaseCorrelationBaseline, bcfg),
+                            with_z=bcfg.scale)
+    write_estimates(out, run_dataset(dataset, pipe).series)
     return time.perf_counter() - t0
 
 
@@ -210,8 +202,10 @@ def _fmt(v: float | None, metric: str) -> str:
     return f'{v:6.2f}° '
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark; returns 0 (figures are printed, not asserted)."""
+Result = tuple[Case, int, str, dict[str, object], float]
+
+
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('--work', type=Path, default=ROOT / 'build' / 'bench',
@@ -234,6 +228,55 @@ def main(argv: list[str] | None = None) -> int:
                    default=[],
                    help='re-evaluate existing estimate CSVs of these methods instead of '
                         'running them again')
+    return p
+
+
+def _methods(case: Case, args: argparse.Namespace
+             ) -> list[tuple[str, Callable[[Case, Path, Path], float]]]:
+    """The estimators run on one sequence of ``case``, by name."""
+    methods: list[tuple[str, Callable[[Case, Path, Path], float]]] = (
+        [] if args.no_hrn else [('hrn', run_hrn)])
+    if not args.no_baseline:
+        methods.append(('baseline', run_baseline))
+        if _sphere(case):     # the HRN's frame warp given to the baseline too
+            methods.append(('baseline_sphere', partial(run_baseline, sphere=True)))
+    if case.floor:
+        methods.append(('floor', run_floor))
+    return methods
+
+
+def _run_method(case: Case, seed: int, ds: Path, method: str,
+                runner: Callable[[Case, Path, Path], float], args: argparse.Namespace,
+                done: set[Path]) -> Result:
+    """Run (or reuse) one method's estimate on one sequence, evaluate it, print a line."""
+    work: Path = args.work
+    # the baseline has no IMU: rotation and rotation_imu share its estimate
+    tag = case.sim_kind if method != 'hrn' else case.name
+    est = work / 'est' / (f'{tag}_{args.seconds:g}s_seed{seed}'
+                          f'{_speed_tag(args.speed_scale)}_{method}.csv')
+    est.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        if (method in args.reuse or est in done) and est.exists():
+            wall = float('nan')
+        else:
+            wall = runner(case, ds, est)
+        plot = (work / 'plots' / f'{est.stem}.png') if args.plots else None
+        res = evaluate(case, ds, est, plot, args.convention, args.roll_zero)
+    except Exception as err:
+        print(f'  {method}: FAILED {err}', flush=True)
+        res, wall = {'metrics': {}, 'warnings': [str(err)[:200]]}, float('nan')
+    metrics = res.get('metrics', {})
+    assert isinstance(metrics, dict)
+    shown = ', '.join(f'{m} {_fmt(metrics.get(m), m).strip()}' for m in case.metrics)
+    print(f'  {method:8s} {shown}  ({wall:.1f} s wall, lag '
+          f'{1e3 * float(cast(float, res.get("lag_s", float("nan")))):+.0f} ms)', flush=True)
+    done.add(est)
+    return case, seed, method, res, wall
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; returns 0 (figures are printed, not asserted)."""
+    p = _parser()
     args = p.parse_args(argv)
     try:
         SimulatorConfig(speed_scale=args.speed_scale)
@@ -243,49 +286,20 @@ def main(argv: list[str] | None = None) -> int:
         args.seeds, args.seconds = args.seeds[:1], 8.0
     work: Path = args.work
     work.mkdir(parents=True, exist_ok=True)
-    results: list[tuple[Case, int, str, dict[str, object], float]] = []
+    results: list[Result] = []
     done: set[Path] = set()
     for name in args.kinds:
         case = CASES[name]
         for seed in args.seeds:
             print(f'{name} seed {seed}:', flush=True)
             ds = sequence(work, case.sim_kind, args.seconds, seed, args.speed_scale)
-            methods = [] if args.no_hrn else [('hrn', run_hrn)]
-            if not args.no_baseline:
-                methods.append(('baseline', run_baseline))
-                if _sphere(case):     # the HRN's frame warp given to the baseline too
-                    methods.append(('baseline_sphere', partial(run_baseline, sphere=True)))
-            if case.floor:
-                methods.append(('floor', run_floor))
-            for method, runner in methods:
-                # the baseline has no IMU: rotation and rotation_imu share its estimate
-                tag = case.sim_kind if method != 'hrn' else name
-                est = work / 'est' / (f'{tag}_{args.seconds:g}s_seed{seed}'
-                                      f'{_speed_tag(args.speed_scale)}_{method}.csv')
-                est.parent.mkdir(parents=True, exist_ok=True)
-                try:
-                    if (method in args.reuse or est in done) and est.exists():
-                        wall = float('nan')
-                    else:
-                        wall = runner(case, ds, est)
-                    plot = (work / 'plots' / f'{est.stem}.png') if args.plots else None
-                    res = evaluate(case, ds, est, plot, args.convention, args.roll_zero)
-                except Exception as err:
-                    print(f'  {method}: FAILED {err}', flush=True)
-                    res, wall = {'metrics': {}, 'warnings': [str(err)[:200]]}, float('nan')
-                metrics = res.get('metrics', {})
-                assert isinstance(metrics, dict)
-                shown = ', '.join(f'{m} {_fmt(metrics.get(m), m).strip()}' for m in case.metrics)
-                print(f'  {method:8s} {shown}  ({wall:.1f} s wall, lag '
-                      f'{1e3 * float(res.get("lag_s", float("nan"))):+.0f} ms)', flush=True)
-                results.append((case, seed, method, res, wall))
-                done.add(est)
+            for method, runner in _methods(case, args):
+                results.append(_run_method(case, seed, ds, method, runner, args, done))
     _table(results, args)
     return 0
 
 
-def _table(results: list[tuple[Case, int, str, dict[str, object], float]],
-           args: argparse.Namespace) -> None:
+def _table(results: list[Result], args: argparse.Namespace) -> None:
     print()
     speed = '' if args.speed_scale == 1.0 else f', motion {args.speed_scale:g}x faster'
     zero = ('paper protocol' if args.roll_zero == 0.1 else

@@ -48,7 +48,7 @@ from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa
 from hrn_vo_ros.core.events.frames import frames_from_events, PacketizerConfig, with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Trajectory  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
-from hrn_vo_ros.core.hrn.network import needs_focal, ResonatorConfig  # noqa: E402
+from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig  # noqa: E402
 from hrn_vo_ros.core.sim.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402

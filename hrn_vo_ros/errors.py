@@ -64,6 +64,15 @@ class TrackingError(HrnVoError):
     exit_code = 5
 
 
+class DatasetWarning(UserWarning):
+    """Usable input with something missing that the user should know about (e.g. no
+    ``calib.txt``, so a converted bag has no camera_info)."""
+
+
+class IntegrityError(BagError):
+    """A bag whose bytes do not match its CRCs, counts or stored event checksum."""
+
+
 def exit_code_for(err: BaseException) -> int:
     """The process exit code a CLI returns for ``err`` (1 for unknown package errors)."""
     return err.exit_code if isinstance(err, HrnVoError) else 1

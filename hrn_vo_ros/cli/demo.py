@@ -115,7 +115,7 @@ def convert(dataset: Path, dst: Path) -> Path:
 
 def write_est_csv(bag: Path, dst: Path) -> Path:
     """The recorded raw readouts as an estimate CSV (``hrn-vo run`` columns)."""
-    from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
+    from hrn_vo_ros.core.evaluation.series import EstimateSeries
     from hrn_vo_ros.io.estimates import write_estimates
     from hrn_vo_ros.io.recording import read_readouts
     from hrn_vo_ros.nodes.graph import READOUT_TOPIC

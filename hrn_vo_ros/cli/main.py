@@ -16,7 +16,7 @@ from hrn_vo_ros.errors import exit_code_for, HrnVoError
 
 # Subcommand modules, in the order `hrn-vo --help` lists them. A module missing from an
 # installation (optional backends) is skipped.
-SUBCOMMANDS = ('simulate', 'run', 'evaluate', 'convert', 'play', 'demo')
+SUBCOMMANDS = ('simulate', 'run', 'evaluate', 'convert', 'play', 'demo', 'check')
 
 
 def echo(*parts: object, err: bool = False) -> None:

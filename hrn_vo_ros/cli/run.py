@@ -1,7 +1,8 @@
 """``hrn-vo run DATASET --config CFG.yaml --out est.csv [--imu] [--seed K] [--set KEY=VALUE]``.
 
 Streams ``events.txt`` of an Event Camera Dataset folder or zip (``io.ecd.iter_events``), makes
-fixed-count event frames (``core.frames.Packetizer``), runs the HRN on every frame and writes
+fixed-count event frames (``core.events.frames.Packetizer``), runs the HRN on every frame (the
+odometry pipeline, ``core.pipeline`` driven by ``io.pipeline``) and writes
 the estimate CSV ``t,h,v,r[,z]`` (``io.estimates``): ``t`` packet midpoint in seconds, ``h``, ``v``
 camera position in the map in frame pixels, ``r`` roll in radians (right-handed about the optical
 axis, unwrapped), ``z`` log scale (when ``scale.enabled``). With ``--imu`` the gyro of
@@ -14,7 +15,6 @@ from __future__ import annotations
 import argparse
 import io
 from pathlib import Path
-import time
 from typing import Any
 
 import numpy as np
@@ -23,14 +23,12 @@ import yaml
 from hrn_vo_ros.cli.main import echo
 from hrn_vo_ros.cli.progress import Progress
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
-from hrn_vo_ros.core.events.frames import Packetizer, with_calibration
 from hrn_vo_ros.core.hrn.backends import BackendConfig, BACKENDS, make_backend, SpikingDiagnostics
-from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError
 from hrn_vo_ros.io import ecd
 from hrn_vo_ros.io.estimates import write_estimates
+from hrn_vo_ros.io.pipeline import dataset_pipeline, run_dataset
 from hrn_vo_ros.io.yamlconfig import dataset_configs
 
 
@@ -86,47 +84,24 @@ def run(args: argparse.Namespace) -> int:
     if args.imu:
         rs_over['imu.enabled'] = True
     dc = dataset_configs(args.config, dataset, packetizer=pk_over, resonator=rs_over)
-    pcfg, rcfg = dc.packetizer, dc.resonator
-    width, height = pcfg.sensor_width, pcfg.sensor_height
-    gyro: GyroIntegrator | None = None
-    if rcfg.imu.enabled:
-        rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
-        gyro = GyroIntegrator(ecd.read_imu(dataset), rot)
-    if pcfg.rectify != 'none':
-        pcfg = with_calibration(pcfg, ecd.read_calib(dataset))
-    packetizer = Packetizer(pcfg)
-    hrn = make_backend(rcfg, rng=np.random.default_rng(args.seed), backend=backend)
-    rows: list[tuple[int, float, float, float, float]] = []
-    prev_angle: np.ndarray | None = None
-    total = ecd.event_count(dataset)
-    start = time.perf_counter()
-    with Progress(total, 'hrn-vo run', unit='ev',
+    rcfg = dc.resonator
+    pipe = dataset_pipeline(
+        dataset, dc.packetizer,
+        lambda: make_backend(rcfg, rng=np.random.default_rng(args.seed), backend=backend),
+        camera_from_imu=np.reshape(np.asarray(rcfg.imu.camera_from_imu, np.float64), (3, 3)),
+        imu=rcfg.imu.enabled, with_z=rcfg.scale.enabled)
+    with Progress(ecd.event_count(dataset), 'hrn-vo run', unit='ev',
                   stream=io.StringIO() if args.quiet else None) as bar:
-        for batch in ecd.iter_events(dataset, sensor_size=(width, height)):
-            for frame in packetizer.push(batch):
-                delta = None
-                if gyro is not None:
-                    angle = gyro.angle_at(frame.t_ns)
-                    delta = None if prev_angle is None else angle - prev_angle
-                    prev_angle = angle
-                e = hrn.step(frame.image, frame.t_ns, gyro_delta=delta)
-                rows.append((frame.t_ns, e.h, e.v, e.r, e.z))
-            bar.advance(len(batch))
-    elapsed = time.perf_counter() - start
-    if not rows:
-        raise DatasetError(f'fewer events than one packet ({pcfg.events_per_frame}); nothing '
-                           'to estimate', path=dataset)
-    arr = np.array([r[1:] for r in rows], dtype=np.float64)
-    est = EstimateSeries(t=np.array([r[0] for r in rows], dtype=np.int64), h=arr[:, 0],
-                         v=arr[:, 1], r=arr[:, 2], z=arr[:, 3] if rcfg.scale.enabled else None)
-    write_estimates(args.out, est)
-    if isinstance(hrn, SpikingDiagnostics):
-        acc = hrn.account_summary()
+        result = run_dataset(dataset, pipe, on_events=bar.advance)
+    write_estimates(args.out, result.series)
+    if isinstance(pipe.estimator, SpikingDiagnostics):
+        acc = pipe.estimator.account_summary()
         echo('spiking, per iteration (last frame): ' + ', '.join(
             f'{k} {acc[k]:.4g}' for k in ('spikes', 'synops', 'neuron_updates', 'energy_uJ',
                                           'time_us') if k in acc))
-    if packetizer.outside:
-        echo(f'{packetizer.outside} events rectified outside the frame (not binned)')
-    echo(f'{len(rows)} frames in {elapsed:.2f} s ({len(rows) / max(elapsed, 1e-9):.0f} '
+    if result.outside:
+        echo(f'{result.outside} events rectified outside the frame (not binned)')
+    n = len(result.series)
+    echo(f'{n} frames in {result.seconds:.2f} s ({n / max(result.seconds, 1e-9):.0f} '
          f'frames/s) -> {args.out}')
     return 0

@@ -5,13 +5,18 @@
   ``get_types_from_msg``. Bags written with it carry every message definition and RIHS01 hash.
 * :class:`BagWriter` writes ``DST`` as ``DST.partial/<name>`` and renames it to ``DST`` only when
   closed without error, so an interrupted write never leaves something that looks like a bag at
-  ``DST``; it refuses to overwrite. Each topic records its offered QoS profile
+  ``DST``; it refuses to overwrite. MCAP files get their chunk, data-section and summary CRCs
+  (rosbags writes zeros) before the rename. Each topic records its offered QoS profile
   (:data:`EVENTS_QOS` best-effort like the camera drivers, :data:`SENSOR_QOS`,
   :data:`RELIABLE_QOS`).
 * :func:`open_bag` opens a ROS 2 bag (sqlite3 or MCAP) for reading: metadata versions 5 to 9
   (rosbag2 of Foxy to Jazzy), with an empty ``storage_identifier`` (older rosbag2 writes one)
   inferred from the storage files' suffixes (``.mcap``, ``.db3``); ``.partial`` paths, missing
-  or corrupt bags raise :class:`~hrn_vo_ros.errors.BagError`.
+  or corrupt bags raise :class:`~hrn_vo_ros.errors.BagError`, and so do metadata message
+  counts that differ from the storage's, failed MCAP summary CRCs or sqlite checks, and bag-time
+  spans over :data:`MAX_BAG_SPAN_NS`.
+* :func:`verify_bag` checks a whole bag: every CRC, every count, every event message decoded
+  and sane, and the event checksum ``hrn-vo convert`` stores in ``custom_data``.
 * :func:`iter_bag_events` streams the decoded events of an EventPacket topic (any encoding
   :mod:`hrn_vo_ros.io.eventpacket` knows) or a legacy ``dvs_msgs/msg/EventArray`` topic.
 * :func:`event_packet_cdr` serialises an EventPacket straight to CDR bytes (byte-identical to
@@ -26,9 +31,11 @@ import functools
 import os
 from pathlib import Path
 import shutil
+import sqlite3
 import struct
 from types import TracebackType
 from typing import Any, Literal
+import zlib
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,7 +56,7 @@ from rosbags.typesys.store import Typestore
 import yaml
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.errors import BagError, DecodeError
+from hrn_vo_ros.errors import BagError, DecodeError, IntegrityError
 from hrn_vo_ros.io import eventpacket
 
 MSG_DIR = Path(__file__).resolve().parent / 'msg'
@@ -138,11 +145,17 @@ class BagWriter:
             raise
         return self
 
+    def set_custom_data(self, key: str, value: str) -> None:
+        """Store ``key: value`` in the bag metadata's ``custom_data`` (set before closing)."""
+        self._writer.set_custom_data(key, value)
+
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         try:
             self._writer.__exit__(exc_type, exc, tb)
             if exc_type is None:
+                for mcap in (self.partial / self.dst.name).glob('*.mcap'):
+                    scan_mcap(mcap, patch=True)  # rosbags writes zero CRCs: fill them in
                 if self.dst.exists():
                     raise BagError(f'{self.dst} appeared while writing: not overwriting it')
                 os.rename(self.partial / self.dst.name, self.dst)
@@ -350,6 +363,12 @@ def open_bag(path: Path | str) -> BagReader:
         reader.open()
     except Exception as err:  # rosbags raises its own errors and sqlite/mcap ones
         raise BagError(f'{path}: cannot read the bag ({type(err).__name__}: {err})') from err
+    try:
+        storage = bag_storage(path) if path.is_dir() else STORAGE_SUFFIXES.get(path.suffix, '')
+        check_storage(path, reader, storage)
+    except BaseException:
+        reader.close()
+        raise
     return reader
 
 
@@ -372,16 +391,36 @@ def iter_messages(reader: Reader, topics: list[str] | None = None) -> Iterator[B
     """
     conns = [c for c in reader.connections if topics is None or c.topic in topics]
     it = reader.messages(connections=conns)
+    k, last = 0, None
     while True:
         try:
             item = next(it)
         except StopIteration:
             return
         except Exception as err:
-            raise BagError(f'{reader.path}: corrupt record ({type(err).__name__}: {err})'
-                           ) from err
+            names = ', '.join(sorted({c.topic for c in conns})) or 'no topic'
+            where = (f'after record {k} (bag time {last} ns)' if last is not None
+                     else 'at the first record')
+            raise BagError(f'{reader.path}: topics {names}: corrupt record {where}'
+                           f'{_locate_corruption(Path(str(reader.path)))} ({type(err).__name__}: '
+                           f'{err}): the bag is damaged; convert or copy it again') from err
         conn, t, raw = item
+        k, last = k + 1, t
         yield BagMessage(conn.topic, conn.msgtype, t, raw, conn)
+
+
+def _locate_corruption(path: Path) -> str:
+    """Where an MCAP bag's first bad chunk lies (``''`` when that cannot be told)."""
+    files = [path] if path.suffix == '.mcap' else sorted(path.glob('*.mcap'))
+    for f in files:
+        try:
+            bad = scan_mcap(f).bad_chunk()
+        except BagError as err:
+            return f'; {err}'
+        if bad is not None:
+            return (f'; {f.name}: the chunk at byte {bad.offset} (bag time {bad.start_ns}..'
+                    f'{bad.end_ns} ns) fails its CRC')
+    return ''
 
 
 def qos_profiles(conn: Connection) -> list[Qos]:
@@ -412,17 +451,483 @@ def iter_bag_events(path: Path | str, *, topic: str | None = None) -> Iterator[E
             raise BagError(f'{path}: need exactly one event topic (EventPacket or dvs '
                            f'EventArray){" named " + topic if topic else ""}; found {found}')
         decoder: eventpacket.PacketDecoder | None = None
-        for m in iter_messages(reader, topics):
+        for k, m in enumerate(iter_messages(reader, topics)):
+            where = f'{path}: {m.topic}: message {k} (bag time {m.t_ns} ns)'
             if m.msgtype == DVS_EVENT_ARRAY:
-                yield eventpacket.decode_dvs_cdr(m.raw).events
+                try:
+                    yield eventpacket.decode_dvs_cdr(m.raw).events
+                except DecodeError as err:
+                    raise DecodeError(f'{where}: {err}') from err
                 continue
             try:
                 msg: Any = ts.deserialize_cdr(m.raw, EVENT_PACKET)
             except Exception as err:
-                raise DecodeError(f'{path}: {m.topic} at {m.t_ns} ns: corrupt EventPacket '
-                                  f'({err})') from err
+                raise DecodeError(f'{where}: corrupt EventPacket ({type(err).__name__}: '
+                                  f'{err})') from err
             if decoder is None:  # evt3: drop out-of-sensor events, as the C++ decoder does
                 decoder = eventpacket.PacketDecoder(width=int(msg.width) or None,
                                                     height=int(msg.height) or None)
-            yield decoder.decode(msg.encoding, msg.events, time_base=int(msg.time_base),
-                                 is_bigendian=bool(msg.is_bigendian))
+            try:
+                ev = decoder.decode(str(msg.encoding), msg.events, time_base=int(msg.time_base),
+                                    is_bigendian=bool(msg.is_bigendian))
+                if msg.encoding == 'mono':
+                    check_packet_events(ev, int(msg.width), int(msg.height))
+            except DecodeError as err:
+                raise DecodeError(f'{where}: {err}') from err
+            yield ev
+
+
+def check_packet_events(ev: EventArray, width: int, height: int) -> None:
+    """Refuse a decoded stateless packet whose events are off the sensor or out of time order.
+
+    Stateless encodings (``mono``) keep every word, so an event outside the packet's
+    ``width`` x ``height`` (when given) or a time before the previous event's means a corrupt
+    payload (a bit flip that no storage checksum caught).
+
+    Raises:
+        DecodeError: naming the first bad event.
+    """
+    if len(ev) == 0:
+        return
+    bad = np.zeros(len(ev), bool)
+    if width:
+        bad |= ev.x >= width
+    if height:
+        bad |= ev.y >= height
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DecodeError(f'event {i} at x={int(ev.x[i])}, y={int(ev.y[i])} is outside the '
+                          f'{width}x{height} sensor the packet names: a corrupt payload')
+    back = np.flatnonzero(ev.t[1:] < ev.t[:-1])
+    if back.size:
+        i = int(back[0]) + 1
+        raise DecodeError(f'event {i} at {int(ev.t[i])} ns is before event {i - 1} '
+                          f'({int(ev.t[i - 1])} ns): times must not decrease within a packet; '
+                          'a corrupt payload')
+
+
+# ------------------------------------------------------------------------------------ integrity
+
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+_OP_FOOTER, _OP_CHANNEL, _OP_CHUNK, _OP_STATISTICS, _OP_DATA_END = 0x02, 0x04, 0x06, 0x0B, 0x0F
+MAX_BAG_SPAN_NS = 7 * 24 * 3600 * 1_000_000_000
+"""Longest bag-time span :func:`open_bag` accepts (7 days): longer ones hold a stray stamp."""
+CHECKSUM_KEY = 'hrn_vo_ros.events_sha256'
+"""``custom_data`` key of the converted bags' event checksum (:class:`EventChecksum`)."""
+COUNT_KEY = 'hrn_vo_ros.events_count'
+"""``custom_data`` key of the converted bags' event count."""
+TOPIC_KEY = 'hrn_vo_ros.events_topic'
+"""``custom_data`` key of the topic the event checksum covers."""
+
+
+@dataclass(frozen=True, slots=True)
+class McapChunk:
+    """One MCAP chunk record: byte offset of its opcode, stored CRC and the CRC of its records."""
+
+    offset: int
+    start_ns: int
+    end_ns: int
+    stored_crc: int
+    crc: int
+
+
+@dataclass(frozen=True, slots=True)
+class McapScan:
+    """What :func:`scan_mcap` found in an MCAP file (everything a CRC covers, and the counts)."""
+
+    path: Path
+    chunks: list[McapChunk]
+    data_crc_stored: int
+    data_crc: int
+    summary_crc_stored: int
+    summary_crc: int
+    topics: dict[int, str]
+    counts: dict[int, int] | None
+    start_ns: int | None
+    end_ns: int | None
+
+    def bad_chunk(self) -> McapChunk | None:
+        """The first chunk whose stored (non-zero) CRC does not match its records."""
+        return next((c for c in self.chunks if c.stored_crc and c.stored_crc != c.crc), None)
+
+    def topic_counts(self) -> dict[str, int] | None:
+        """Messages per topic from the statistics record (None without one)."""
+        if self.counts is None:
+            return None
+        out: dict[str, int] = {}
+        for cid, n in self.counts.items():
+            name = self.topics.get(cid, f'channel {cid}')
+            out[name] = out.get(name, 0) + n
+        return out
+
+
+def _mcap_fail(path: Path, offset: int, what: str) -> BagError:
+    return BagError(f'{path}: byte {offset}: {what}: the MCAP file is truncated or corrupt; '
+                    'record or convert the bag again')
+
+
+def _u(fmt: str, buf: bytes, off: int, path: Path, at: int) -> tuple[Any, ...]:
+    try:
+        return struct.unpack_from(fmt, buf, off)
+    except struct.error:
+        raise _mcap_fail(path, at, 'record too short for its fields') from None
+
+
+def _mcap_string(buf: bytes, off: int, path: Path, at: int) -> tuple[str, int]:
+    (n,) = _u('<I', buf, off, path, at)
+    if off + 4 + n > len(buf):
+        raise _mcap_fail(path, at, 'string longer than its record')
+    return bytes(buf[off + 4:off + 4 + n]).decode('utf-8', 'replace'), off + 4 + n
+
+
+def scan_mcap(path: Path | str, *, full: bool = True, patch: bool = False) -> McapScan:
+    """Walk every record of an MCAP file, computing the CRCs the format defines.
+
+    Chunk CRC: CRC-32 of the chunk's uncompressed records. Data-section CRC: CRC-32 of every
+    byte from the start of the file up to the DataEnd record. Summary CRC: CRC-32 from the
+    summary start through the footer's ``summary_offset_start`` field. A stored value of 0
+    means "not computed". With ``patch`` the computed values are written into the file (what
+    :class:`BagWriter` does after rosbags, which writes zeros). Without ``full`` only the
+    summary section is read (channels, statistics, summary CRC; chunks are left unchecked:
+    rosbags checks each chunk's CRC when it reads it).
+
+    Raises:
+        BagError: for a file that is not a structurally valid MCAP file, naming the offset.
+    """
+    path = Path(path)
+    mode = 'r+b' if patch else 'rb'
+    chunks: list[McapChunk] = []
+    topics: dict[int, str] = {}
+    counts: dict[int, int] | None = None
+    start_ns: int | None = None
+    end_ns: int | None = None
+    data_crc_stored = summary_crc_stored = summary_crc = 0
+    data_crc: int | None = None
+    try:
+        f = path.open(mode)
+    except OSError as err:
+        raise BagError(f'{path}: cannot read ({err})') from err
+    with f:
+        size = f.seek(0, os.SEEK_END)
+        f.seek(0)
+        if size < 2 * len(MCAP_MAGIC) or f.read(8) != MCAP_MAGIC:
+            raise _mcap_fail(path, 0, 'no MCAP magic at the start')
+        running = zlib.crc32(MCAP_MAGIC)
+        pos = 8
+        summary_start = None
+        if not full and not patch:
+            f.seek(size - 8 - 29)
+            tail = f.read(29)
+            if tail[0] != _OP_FOOTER:
+                raise _mcap_fail(path, size - 37, 'no footer record')
+            s_start = struct.unpack_from('<Q', tail, 9)[0]
+            if s_start:
+                if not 8 <= s_start <= size - 37:
+                    raise _mcap_fail(path, size - 37, f'summary start {s_start} out of range')
+                pos = summary_start = s_start
+                data_crc = 0  # the data section is not read
+                f.seek(pos)
+        while pos < size - 8:
+            head = f.read(9)
+            if len(head) < 9:
+                raise _mcap_fail(path, pos, 'record header cut off')
+            op, length = struct.unpack('<BQ', head)
+            if length > size - pos - 9:
+                raise _mcap_fail(path, pos, f'record of {length} bytes runs past the end')
+            body = f.read(length)
+            if op == _OP_CHUNK:
+                t0, t1, usize, stored = _u('<QQQI', body, 0, path, pos)
+                comp, off = _mcap_string(body, 28, path, pos)
+                (clen,) = _u('<Q', body, off, path, pos)
+                records = body[off + 8:off + 8 + clen]
+                if comp or len(records) != clen or clen != usize:
+                    raise _mcap_fail(path, pos, f'chunk compression {comp!r} or sizes '
+                                     f'{clen}/{usize} not readable here')
+                crc = zlib.crc32(records)
+                if patch and stored != crc:
+                    body = body[:24] + struct.pack('<I', crc) + body[28:]
+                    f.seek(pos + 9 + 24)
+                    f.write(struct.pack('<I', crc))
+                    f.seek(pos + 9 + length)
+                    stored = crc
+                chunks.append(McapChunk(pos, t0, t1, stored, crc))
+            elif op == _OP_DATA_END:
+                data_crc = running
+                (data_crc_stored,) = _u('<I', body, 0, path, pos)
+                if patch:
+                    f.seek(pos + 9)
+                    f.write(struct.pack('<I', running))
+                    f.seek(pos + 9 + length)
+                    data_crc_stored = running
+                summary_start = pos + 9 + length
+            elif op == _OP_CHANNEL:
+                (cid,) = _u('<H', body, 0, path, pos)
+                topics[cid], _ = _mcap_string(body, 4, path, pos)
+            elif op == _OP_STATISTICS:
+                (_n, _s, _c, _a, _m, _k, t0, t1, mlen) = _u('<QHIIIIQQI', body, 0, path, pos)
+                counts = {}
+                for i in range(mlen // 10):
+                    cid, n = _u('<HQ', body, 46 + 10 * i, path, pos)
+                    counts[cid] = n
+                start_ns, end_ns = t0, t1
+            elif op == _OP_FOOTER:
+                s_start, _s_off, summary_crc_stored = _u('<QQI', body, 0, path, pos)
+                f.seek(s_start if s_start else pos)
+                covered = f.read(pos + 9 + 16 - (s_start if s_start else pos))
+                summary_crc = zlib.crc32(covered)
+                if patch and s_start:
+                    f.seek(pos + 9 + 16)
+                    f.write(struct.pack('<I', summary_crc))
+                    summary_crc_stored = summary_crc
+                f.seek(pos + 9 + length)
+                pos += 9 + length
+                break
+            if data_crc is None:
+                running = zlib.crc32(head + body, running)
+            pos += 9 + length
+        else:
+            raise _mcap_fail(path, pos, 'no footer record')
+        if f.read(8) != MCAP_MAGIC:
+            raise _mcap_fail(path, pos, 'no MCAP magic at the end')
+        if data_crc is None or summary_start is None:
+            raise _mcap_fail(path, pos, 'no DataEnd record')
+    return McapScan(path, chunks, data_crc_stored, data_crc, summary_crc_stored, summary_crc,
+                    topics, counts, start_ns, end_ns)
+
+
+def check_mcap_crcs(scan: McapScan) -> None:
+    """Refuse an MCAP file whose stored (non-zero) CRCs do not match its bytes.
+
+    Raises:
+        BagError: naming the file, the byte offset and the bag-time range of a bad chunk.
+    """
+    bad = scan.bad_chunk()
+    if bad is not None:
+        raise IntegrityError(f'{scan.path}: the chunk at byte {bad.offset} (bag time '
+                             f'{bad.start_ns}..{bad.end_ns} ns) fails its CRC (stored '
+                             f'{bad.stored_crc:08x}, computed {bad.crc:08x}): the bag is '
+                             'corrupt; convert or copy it again')
+    if scan.data_crc_stored and scan.data_crc_stored != scan.data_crc:
+        raise IntegrityError(f'{scan.path}: the data section fails its CRC (stored '
+                             f'{scan.data_crc_stored:08x}, computed {scan.data_crc:08x}): bytes '
+                             'outside the chunks (message indexes) are corrupt; convert it again')
+    if scan.summary_crc_stored and scan.summary_crc_stored != scan.summary_crc:
+        raise IntegrityError(f'{scan.path}: the summary section fails its CRC (stored '
+                             f'{scan.summary_crc_stored:08x}, computed '
+                             f'{scan.summary_crc:08x}): the index at the end of the file is '
+                             'corrupt; convert it again')
+
+
+def _storage_files(path: Path) -> list[Path]:
+    if path.is_file():
+        return [path]
+    try:
+        doc = yaml.safe_load((path / 'metadata.yaml').read_text())
+        files = doc['rosbag2_bagfile_information'].get('relative_file_paths') or []
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError) as err:
+        raise BagError(f'{path / "metadata.yaml"}: unreadable bag metadata ({err})') from err
+    return [path / str(f) for f in files]
+
+
+def _sqlite_stats(db: Path) -> tuple[dict[str, int], int | None, int | None, str]:
+    """Messages per topic, first and last bag time and ``PRAGMA quick_check`` of a .db3 file."""
+    try:
+        con = sqlite3.connect(f'file:{db}?mode=ro', uri=True)
+        try:
+            rows = con.execute('SELECT t.name, COUNT(m.id), MIN(m.timestamp), '
+                               'MAX(m.timestamp) FROM messages m JOIN topics t ON '
+                               't.id = m.topic_id GROUP BY t.name').fetchall()
+            check = str(con.execute('PRAGMA quick_check').fetchone()[0])
+        finally:
+            con.close()
+    except sqlite3.Error as err:
+        raise BagError(f'{db}: not a readable rosbag2 sqlite3 file ({err}): corrupt; convert '
+                       'it again') from err
+    counts = {str(r[0]): int(r[1]) for r in rows}
+    t0 = min((int(r[2]) for r in rows), default=None)
+    t1 = max((int(r[3]) for r in rows), default=None)
+    return counts, t0, t1, check
+
+
+@dataclass(frozen=True, slots=True)
+class StorageFacts:
+    """What the storage files say, independent of metadata.yaml."""
+
+    counts: dict[str, int] | None
+    start_ns: int | None
+    end_ns: int | None
+    scans: list[McapScan]
+
+
+def storage_facts(path: Path | str, storage: str, *, full: bool = False) -> StorageFacts:
+    """Per-topic message counts and bag-time range read from the storage files themselves.
+
+    MCAP: from the statistics and channel records (and every CRC, see :func:`scan_mcap`);
+    sqlite3: by counting the rows. Counts are None when an MCAP file has no statistics.
+    ``full`` reads every MCAP record (all CRCs, see :func:`scan_mcap`), else only the summary.
+
+    Raises:
+        BagError: for unreadable or structurally broken storage files.
+    """
+    path = Path(path)
+    counts: dict[str, int] | None = {}
+    t0s: list[int] = []
+    t1s: list[int] = []
+    scans: list[McapScan] = []
+    for f in _storage_files(path):
+        if storage == 'mcap':
+            scan = scan_mcap(f, full=full)
+            scans.append(scan)
+            part = scan.topic_counts()
+            if scan.start_ns is not None and scan.end_ns is not None and part:
+                t0s.append(scan.start_ns)
+                t1s.append(scan.end_ns)
+        elif storage == 'sqlite3':
+            part, a, b, check = _sqlite_stats(f)
+            if check != 'ok':
+                raise BagError(f'{f}: sqlite integrity check failed ({check[:200]}): the bag '
+                               'is corrupt; convert or copy it again')
+            if a is not None and b is not None:
+                t0s.append(a)
+                t1s.append(b)
+        else:
+            return StorageFacts(None, None, None, [])
+        if part is None or counts is None:
+            counts = None
+        else:
+            for k, v in part.items():
+                counts[k] = counts.get(k, 0) + v
+    return StorageFacts(counts, min(t0s, default=None), max(t1s, default=None), scans)
+
+
+def check_storage(path: Path | str, reader: Reader, storage: str, *,
+                  full: bool = False) -> StorageFacts:
+    """Compare metadata.yaml with the storage files and refuse absurd bag-time spans.
+
+    Raises:
+        BagError: when a topic's ``message_count`` in the metadata differs from the storage,
+            when a CRC fails (MCAP), or when the bag spans more than :data:`MAX_BAG_SPAN_NS`.
+    """
+    path = Path(path)
+    facts = storage_facts(path, storage, full=full)
+    for scan in facts.scans:
+        check_mcap_crcs(scan)
+    if facts.counts is not None and path.is_dir():
+        meta = {c.topic: c.msgcount for c in reader.connections}
+        for topic in sorted(set(meta) | set(facts.counts)):
+            want, got = meta.get(topic, 0), facts.counts.get(topic, 0)
+            if want != got:
+                raise IntegrityError(f'{path / "metadata.yaml"}: topic {topic} has '
+                                     f'message_count {want} but the storage holds {got} '
+                                     'messages: the metadata was edited or belongs to another '
+                                     f'bag; set it to {got} (or run `ros2 bag reindex`)')
+        total = int(reader.message_count)
+        if total != sum(facts.counts.values()):
+            raise BagError(f'{path / "metadata.yaml"}: message_count {total} but the topics '
+                           f'hold {sum(facts.counts.values())} messages: set it to the sum')
+    if facts.start_ns is not None and facts.end_ns is not None:
+        _check_span(path, facts.start_ns, facts.end_ns)
+    if int(reader.message_count):
+        _check_span(path, int(reader.start_time), int(reader.end_time) - 1)
+    return facts
+
+
+def _check_span(path: Path, t0: int, t1: int) -> None:
+    if t1 - t0 > MAX_BAG_SPAN_NS:
+        raise BagError(f'{path}: bag time runs from {t0} to {t1} ns, a span of '
+                       f'{(t1 - t0) / 86400e9:.1f} days (more than '
+                       f'{MAX_BAG_SPAN_NS / 86400e9:.0f}): some messages carry a stamp from '
+                       'another clock (e.g. 0 or wall time); fix their stamps or split the bag')
+
+
+@dataclass(frozen=True, slots=True)
+class BagVerification:
+    """The outcome of :func:`verify_bag` (every check passed)."""
+
+    path: Path
+    storage: str
+    counts: dict[str, int]
+    event_topic: str | None
+    events: int
+    checksum: str | None
+    stored_checksum: str | None
+    chunks_crc_checked: int
+    notes: tuple[str, ...]
+
+
+def custom_data(path: Path | str) -> dict[str, str]:
+    """The ``custom_data`` of a bag directory's metadata (empty when absent or a bare file)."""
+    path = Path(path)
+    if not path.is_dir():
+        return {}
+    try:
+        doc = yaml.safe_load((path / 'metadata.yaml').read_text())
+        data = doc['rosbag2_bagfile_information'].get('custom_data') or {}
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return {}
+    return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+
+def verify_bag(path: Path | str, *, topic: str | None = None) -> BagVerification:
+    """Verify a ROS 2 bag end to end: structure, CRCs, message counts and the event checksum.
+
+    Opens the bag (:func:`open_bag`: metadata against storage counts, MCAP CRCs, sqlite
+    ``quick_check``, bag-time span), reads every record (counting them per topic), decodes
+    every event message with the sanity checks of :func:`iter_bag_events`, and compares the
+    running :class:`~hrn_vo_ros.core.events.arrays.EventChecksum` of the events with the one
+    ``hrn-vo convert`` stored in ``custom_data`` (key :data:`CHECKSUM_KEY`).
+
+    Args:
+        path: Bag directory (or single storage file).
+        topic: Event topic; default the one the stored checksum names, else the only one.
+
+    Raises:
+        BagError: on the first problem, naming bag, topic and position.
+        DecodeError: for an event message that does not decode (naming bag, topic, position).
+    """
+    from hrn_vo_ros.core.events.arrays import EventChecksum
+
+    path = Path(path)
+    meta = custom_data(path)
+    notes: list[str] = []
+    counts: dict[str, int] = {}
+    with open_bag(path) as reader:
+        storage = bag_storage(path) if path.is_dir() else (
+            'mcap' if path.suffix == '.mcap' else 'sqlite3')
+        facts = check_storage(path, reader, storage, full=True)
+        for m in iter_messages(reader):
+            counts[m.topic] = counts.get(m.topic, 0) + 1
+        want = {c.topic: c.msgcount for c in reader.connections}
+        event_topics = sorted({c.topic for c in reader.connections
+                               if c.msgtype in (EVENT_PACKET, DVS_EVENT_ARRAY)})
+    if path.is_dir():
+        for name, n in want.items():
+            if counts.get(name, 0) != n:
+                raise IntegrityError(f'{path}: topic {name}: read {counts.get(name, 0)} '
+                                     f'messages, the metadata says {n}: the bag is corrupt or '
+                                     'truncated')
+    topic = topic or meta.get(TOPIC_KEY) or (event_topics[0] if len(event_topics) == 1
+                                             else None)
+    checksum: str | None = None
+    n_events = 0
+    if topic is not None:
+        ck = EventChecksum()
+        for ev in iter_bag_events(path, topic=topic):
+            ck.update(ev)
+        checksum, n_events = ck.hexdigest(), ck.count
+    else:
+        notes.append('no single event topic: events not decoded')
+    stored = meta.get(CHECKSUM_KEY)
+    if stored is not None and topic == meta.get(TOPIC_KEY, topic):
+        if stored != checksum:
+            raise IntegrityError(f'{path}: topic {topic}: the events decode to checksum '
+                                 f'{checksum} ({n_events} events) but the bag was written with '
+                                 f'{stored} ({meta.get(COUNT_KEY, "?")} events): the bag is '
+                                 'corrupt')
+    else:
+        notes.append('no stored event checksum (not written by hrn-vo convert)')
+    n_crc = sum(1 for s in facts.scans for c in s.chunks if c.stored_crc)
+    if storage == 'mcap' and facts.scans and n_crc == 0:
+        notes.append('the MCAP chunks carry no CRCs (written by another tool)')
+    return BagVerification(path, storage, counts, topic, n_events, checksum, stored, n_crc,
+                           tuple(notes))

@@ -21,7 +21,11 @@ Output (:func:`convert`): a ROS 2 bag (MCAP by default) with
 
 Every stamp and bag time is the sensor clock (int64 ns). Records are written in bag-time order.
 No event is lost or reordered: :class:`ConversionStats` carries the count and an
-:class:`~hrn_vo_ros.core.events.arrays.EventChecksum` of what was written. The bag is written as
+:class:`~hrn_vo_ros.core.events.arrays.EventChecksum` of what was written, and the bag stores
+both in its metadata's ``custom_data`` (keys :data:`~hrn_vo_ros.io.bags.CHECKSUM_KEY`, ...) for
+:func:`~hrn_vo_ros.io.bags.verify_bag`. A dataset without ``calib.txt`` converts without
+camera_info, with a :class:`~hrn_vo_ros.errors.DatasetWarning` (also in
+``ConversionStats.warnings``). The bag is written as
 ``DST.partial/`` and renamed when complete (:class:`~hrn_vo_ros.io.bags.BagWriter`).
 """
 
@@ -34,6 +38,7 @@ import itertools
 from pathlib import Path
 import time
 from typing import Any
+import warnings
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,7 +47,7 @@ from rosbags.typesys.store import Typestore
 
 from hrn_vo_ros.core.events.arrays import EventArray, EventChecksum
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Trajectory
-from hrn_vo_ros.errors import ConfigError, DatasetError
+from hrn_vo_ros.errors import ConfigError, DatasetError, DatasetWarning
 from hrn_vo_ros.io import bags, ecd, eventpacket, npy, ros1bag
 
 EVENTS_TOPIC = '/event_camera/events'
@@ -69,6 +74,15 @@ class Source:
     groundtruth: Trajectory | None = None
     total_events: int | None = None  # exact or estimated, for progress bars
     closer: ExitStack = field(default_factory=ExitStack)
+    warnings: list[str] = field(default_factory=list)
+
+
+def _no_calib_warning(path: Path) -> str:
+    """Warn (and return the text) that a dataset without calib.txt gives no camera_info."""
+    msg = (f'{path}: no {ecd.CALIB_FILE}: the bag gets no camera_info topic (add calib.txt '
+           '"fx fy cx cy k1 k2 p1 p2 k3" to the dataset to have one)')
+    warnings.warn(msg, DatasetWarning, stacklevel=3)
+    return msg
 
 
 def open_source(src: Path | str, *, sensor_size: tuple[int, int] | None = None,
@@ -116,7 +130,8 @@ def _open_ecd(path: Path, sensor_size: tuple[int, int] | None) -> Source:
     return Source(kind='ecd-zip' if path.suffix == '.zip' else 'ecd-text', path=path,
                   events=lambda: ecd.iter_events(path, sensor_size=size), width=size[0],
                   height=size[1], calib=calib, imu=seq_imu, groundtruth=seq_gt,
-                  total_events=ecd.estimate_event_count(path))
+                  total_events=ecd.estimate_event_count(path),
+                  warnings=[] if calib is not None else [_no_calib_warning(path)])
 
 
 def _has(path: Path, name: str) -> bool:
@@ -204,7 +219,8 @@ def _open_npy(events_file: Path, folder: Path, sensor_size: tuple[int, int] | No
                   events=lambda: npy.iter_npy_events(events_file, time_unit=time_unit,
                                                      sensor_size=size),
                   width=size[0], height=size[1], calib=calib, imu=imu, groundtruth=gt,
-                  total_events=npy.npy_event_count(events_file))
+                  total_events=npy.npy_event_count(events_file),
+                  warnings=[_no_calib_warning(folder)] if side and calib is None else [])
 
 
 # ------------------------------------------------------------------------------------ packets
@@ -296,6 +312,7 @@ class ConversionStats:
     last_t_ns: int | None
     seconds: float
     source_kind: str
+    warnings: tuple[str, ...] = ()
 
     @property
     def events_per_second(self) -> float:
@@ -345,12 +362,15 @@ def convert(src: Path | str, dst: Path | str, *, storage: bags.Storage = 'mcap',
     with source.closer, writer_cm as writer:
         written = _write_bag(source, writer, splitter, frame_id, progress)
         counts = dict(writer.counts)
+        writer.set_custom_data(bags.CHECKSUM_KEY, written.checksum.hexdigest())
+        writer.set_custom_data(bags.COUNT_KEY, str(written.checksum.count))
+        writer.set_custom_data(bags.TOPIC_KEY, EVENTS_TOPIC)
     return ConversionStats(events=written.checksum.count, packets=written.packets,
                            imu=counts.get(IMU_TOPIC, 0), poses=counts.get(POSE_TOPIC, 0),
                            camera_info=counts.get(CAMERA_INFO_TOPIC, 0),
                            checksum=written.checksum.hexdigest(), first_t_ns=written.first_t,
                            last_t_ns=written.last_t, seconds=time.perf_counter() - start,
-                           source_kind=source.kind)
+                           source_kind=source.kind, warnings=tuple(source.warnings))
 
 
 def _packet_splitter(events_per_packet: int | None,

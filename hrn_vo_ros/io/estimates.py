@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
+from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import seconds_to_ns
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Literal
-import zipfile
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,9 +47,11 @@ def _columns(path: Path) -> tuple[NDArray[np.generic], ...]:
                                        path=path)
                 return tuple(np.asarray(z[k]) for k in 'txyp')
         arr = np.load(path, mmap_mode='r', allow_pickle=False)
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
-        raise DatasetError(f'cannot read NumPy file (truncated or not NumPy?): {err}',
-                           path=path) from err
+    except DatasetError:
+        raise
+    except Exception as err:  # a corrupt header fails inside numpy's parser in many ways
+        raise DatasetError(f'cannot read NumPy file (truncated or not NumPy?): '
+                           f'{type(err).__name__}: {err}', path=path) from err
     if arr.dtype.names is not None:
         missing = [k for k in 'txyp' if k not in arr.dtype.names]
         if missing:
@@ -61,6 +62,33 @@ def _columns(path: Path) -> tuple[NDArray[np.generic], ...]:
         return tuple(arr[:, i] for i in range(4))
     raise DatasetError(f'array of shape {arr.shape} and dtype {arr.dtype}: expected a '
                        'structured array with t, x, y, p or an (n, 4) array', path=path)
+
+
+_MAX_NS = 9_000_000_000_000_000_000  # below int64 max: times beyond are corrupt
+
+
+def _numeric(arr: NDArray[np.generic], name: str, path: Path) -> NDArray[np.generic]:
+    """``arr`` if it holds integers, booleans or floats (else a DatasetError)."""
+    if arr.dtype.kind not in 'biuf':
+        raise DatasetError(f'column {name} has dtype {arr.dtype}: expected numbers', path=path)
+    return arr
+
+
+def _coordinates(arr: NDArray[np.generic], name: str, path: Path) -> NDArray[np.int64]:
+    """A coordinate column as int64; NaN, infinite or huge float values are refused."""
+    arr = _numeric(arr, name, path)
+    if arr.dtype.kind == 'f':
+        with np.errstate(invalid='ignore'):
+            bad = np.flatnonzero(~(np.abs(arr) <= 1e9))
+        if bad.size:
+            raise DatasetError(f'event {int(bad[0])}: {name} = {arr[int(bad[0])]} is not a '
+                               'pixel coordinate: a corrupt file', path=path)
+    if arr.dtype.kind == 'u' and arr.dtype.itemsize == 8:
+        bad = np.flatnonzero(arr > np.uint64(1 << 62))
+        if bad.size:
+            raise DatasetError(f'event {int(bad[0])}: {name} = {arr[int(bad[0])]} is not a '
+                               'pixel coordinate: a corrupt file', path=path)
+    return arr.astype(np.int64)
 
 
 def npy_event_count(path: Path | str) -> int:
@@ -90,13 +118,21 @@ def iter_npy_events(path: Path | str, *, time_unit: TimeUnit = 'us',
     last = -(1 << 62)
     for start in range(0, t_col.shape[0], chunk_events):
         sl = slice(start, start + chunk_events)
-        t_raw = np.asarray(t_col[sl])
+        t_raw = _numeric(np.asarray(t_col[sl]), 't', path)
+        limit = _MAX_NS // factor
+        with np.errstate(invalid='ignore'):
+            far = np.flatnonzero(~(np.abs(t_raw.astype(np.float64)) <= limit))
+        if far.size:
+            raise DatasetError(f'event {start + int(far[0])}: time {t_raw[int(far[0])]} '
+                               f'{time_unit} is not finite or beyond int64 nanoseconds: a '
+                               'corrupt file or the wrong --time-unit', path=path)
         if np.issubdtype(t_raw.dtype, np.floating):
             t = np.rint(t_raw.astype(np.float64) * factor).astype(np.int64)
         else:
             t = t_raw.astype(np.int64) * factor
-        x, y = np.asarray(x_col[sl]).astype(np.int64), np.asarray(y_col[sl]).astype(np.int64)
-        p = (np.asarray(p_col[sl]) > 0).astype(np.uint8)
+        x = _coordinates(np.asarray(x_col[sl]), 'x', path)
+        y = _coordinates(np.asarray(y_col[sl]), 'y', path)
+        p = (np.asarray(_numeric(np.asarray(p_col[sl]), 'p', path)) > 0).astype(np.uint8)
         if t.size == 0:
             continue
         bad = np.flatnonzero(np.diff(t, prepend=last) < 0)

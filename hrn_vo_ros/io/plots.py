@@ -19,7 +19,7 @@ from matplotlib.axes import Axes
 import matplotlib.pyplot as plt
 import numpy as np
 
-from hrn_vo_ros.core.evaluation.protocol import EvalResult
+from hrn_vo_ros.core.evaluation.series import EvalResult
 
 _GT = '#d95f02'
 _EST = '#1b6ac9'

@@ -21,6 +21,7 @@ from types import TracebackType
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from rosbags.interfaces import Connection
 from rosbags.rosbag1 import Reader, Writer
 from rosbags.typesys import get_types_from_msg, Stores
@@ -76,8 +77,8 @@ class Ros1Dataset:
         self.path = Path(path)
         if not self.path.is_file():
             raise BagError(f'{self.path} does not exist or is not a file: give a ROS 1 .bag')
-        self.reader = Reader(self.path)
         try:
+            self.reader = Reader(self.path)
             self.reader.open()
         except Exception as err:
             raise BagError(f'{self.path}: cannot read the ROS 1 bag ({type(err).__name__}: '
@@ -114,6 +115,23 @@ class Ros1Dataset:
                                f'({type(err).__name__}: {err})') from err
             yield t, raw
 
+    def _msgs(self, topic: str, msgtype: str) -> Iterator[Any]:
+        """Deserialised messages of ``topic``; a corrupt one raises DecodeError naming it."""
+        for i, (t, raw) in enumerate(self._raw(topic)):
+            try:
+                yield self.ts.deserialize_ros1(raw, msgtype)
+            except Exception as err:  # rosbags raises its own and struct/index errors
+                raise DecodeError(f'{self.path}: {topic} message {i} (bag time {t} ns): '
+                                  f'corrupt {msgtype} ({type(err).__name__}: {err})') from err
+
+    def _finite(self, topic: str, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
+        if bad.size:
+            raise DatasetError(f'{topic} message {int(bad[0])} holds a non-finite value '
+                               f'{values[int(bad[0])].tolist()}: a corrupt message',
+                               path=self.path)
+        return values
+
     def events(self) -> Iterator[EventArray]:
         """Events of every ``/dvs/events`` message, in bag order (one batch per message).
 
@@ -139,35 +157,34 @@ class Ros1Dataset:
     def imu(self) -> ImuData | None:
         """All ``/dvs/imu`` samples (header stamps), or None if the topic is absent."""
         t, acc, gyro = [], [], []
-        for _bt, raw in self._raw(self.imu_topic):
-            m: Any = self.ts.deserialize_ros1(raw, 'sensor_msgs/msg/Imu')
+        for m in self._msgs(self.imu_topic, 'sensor_msgs/msg/Imu'):
             t.append(_stamp_ns(m.header.stamp))
             a, g = m.linear_acceleration, m.angular_velocity
             acc.append((a.x, a.y, a.z))
             gyro.append((g.x, g.y, g.z))
         if not t:
             return None
-        return ImuData(t=np.array(t, np.int64), acc=np.array(acc, np.float64),
-                       gyro=np.array(gyro, np.float64))
+        return ImuData(t=np.array(t, np.int64),
+                       acc=self._finite(self.imu_topic, np.array(acc, np.float64)),
+                       gyro=self._finite(self.imu_topic, np.array(gyro, np.float64)))
 
     def groundtruth(self) -> Trajectory | None:
         """All ``/optitrack/davis`` poses (header stamps), or None if the topic is absent."""
         t, pos, quat = [], [], []
-        for _bt, raw in self._raw(self.pose_topic):
-            m: Any = self.ts.deserialize_ros1(raw, 'geometry_msgs/msg/PoseStamped')
+        for m in self._msgs(self.pose_topic, 'geometry_msgs/msg/PoseStamped'):
             t.append(_stamp_ns(m.header.stamp))
             p, q = m.pose.position, m.pose.orientation
             pos.append((p.x, p.y, p.z))
             quat.append((q.x, q.y, q.z, q.w))
         if not t:
             return None
-        return Trajectory(t=np.array(t, np.int64), pos=np.array(pos, np.float64),
-                          quat=np.array(quat, np.float64))
+        return Trajectory(t=np.array(t, np.int64),
+                          pos=self._finite(self.pose_topic, np.array(pos, np.float64)),
+                          quat=self._finite(self.pose_topic, np.array(quat, np.float64)))
 
     def calib(self) -> CameraCalibration | None:
         """Calibration from the first ``/dvs/camera_info``, or None if the topic is absent."""
-        for _bt, raw in self._raw(self.camera_info_topic):
-            m: Any = self.ts.deserialize_ros1(raw, 'sensor_msgs/msg/CameraInfo')
+        for m in self._msgs(self.camera_info_topic, 'sensor_msgs/msg/CameraInfo'):
             k = [float(v) for v in m.K]
             d = [float(v) for v in m.D][:5]
             d += [0.0] * (5 - len(d))
@@ -177,8 +194,12 @@ class Ros1Dataset:
 
     def sensor_size(self) -> tuple[int, int] | None:
         """(width, height) from the first event message (or None if it has none)."""
-        for _t, raw in self._raw(self.events_topic):
-            arr = eventpacket.decode_dvs_ros1(raw)
+        for i, (_t, raw) in enumerate(self._raw(self.events_topic)):
+            try:
+                arr = eventpacket.decode_dvs_ros1(raw)
+            except DecodeError as err:
+                raise DecodeError(f'{self.path}: {self.events_topic} message {i}: {err}'
+                                  ) from err
             return arr.width, arr.height
         return None
 

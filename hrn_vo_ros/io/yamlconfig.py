@@ -27,7 +27,7 @@ import yaml
 
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.events.frames import PacketizerConfig
-from hrn_vo_ros.core.hrn.network import needs_focal, ResonatorConfig, sphere_rectify_problem
+from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ecd
 from hrn_vo_ros.io.nodeconfig import PacketizerNodeConfig, ResonatorNodeConfig

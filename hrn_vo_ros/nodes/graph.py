@@ -199,7 +199,7 @@ class GraphResult:
 
 
 def player_argv(python: str, bag: Path, rate: float, *, imu: bool = False) -> list[str]:
-    """The bag player (issue 5's ``bag_player``): RELIABLE, after the packetizer (and with
+    """The bag player (``nodes/bag_player.py``): RELIABLE, after the packetizer (and with
     ``imu`` the resonator's IMU subscription) subscribed.
 
     ``rate`` 0 plays at ``max_rate`` (KEEP_ALL writers paced by the subscribers).

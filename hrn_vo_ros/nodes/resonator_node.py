@@ -14,6 +14,10 @@ time:
 Parameters: the fields of ``ResonatorConfig`` and ``ResonatorNodeConfig`` (same names), and
 ``backend.name`` (``float`` or ``spiking``) with ``backend.spiking.*`` (``BackendConfig``).
 ``loihi_node`` is this node preset to the spiking backend.
+
+Per frame the node runs the odometry pipeline (``core.pipeline.OdometryPipeline.step``: gyro
+increment, then the resonator), the same step ``hrn-vo run`` takes, so a graph fed a dataset
+reproduces ``hrn-vo run``'s estimates.
 """
 
 from __future__ import annotations
@@ -32,9 +36,10 @@ from sensor_msgs.msg import Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
-from hrn_vo_ros.core.hrn.network import ResonatorConfig, without_unset_sphere
-from hrn_vo_ros.core.odometry.imubuffer import GyroBuffer
+from hrn_vo_ros.core.hrn.config import ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.odometry.odometry import readout_to_pose
+from hrn_vo_ros.core.pipeline import OdometryPipeline
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
@@ -53,15 +58,15 @@ class ResonatorNode(Node):
         self._backend = declare_config(self, BackendConfig, prefix='backend.',
                                        on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
-        self._hrn = self._make_hrn(cfg)
+        self._gyro = GyroIntegrator(np.reshape(cfg.imu.camera_from_imu, (3, 3)),
+                                    max_samples=opts.imu_buffer_samples)
+        self._pipeline = OdometryPipeline(self._make_hrn(cfg), gyro=self._gyro, record=False)
         self.stats = NodeStats()
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._last_t: int | None = None
         self._pending: deque[tuple[int, np.ndarray, float]] = deque()
         self._last_image_wall = self._last_imu_wall = 0.0
         self._confidence: dict[str, float] = {}
-        self._gyro = GyroBuffer(np.reshape(cfg.imu.camera_from_imu, (3, 3)),
-                                max_samples=opts.imu_buffer_samples)
         self._pub_readout = self.create_publisher(JointState, '~/readout', qos(1000))
         self._pub_pose = self.create_publisher(PoseStamped, '~/pose', qos(1000))
         self._pub_odom = self.create_publisher(Odometry, '~/odom', qos(1000))
@@ -77,6 +82,11 @@ class ResonatorNode(Node):
         self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
                                f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
 
+    @property
+    def _hrn(self) -> ResonatorBackend:
+        """The current resonator (the pipeline's estimator)."""
+        return self._pipeline.estimator
+
     def _make_hrn(self, cfg: ResonatorConfig) -> ResonatorBackend:
         """The resonator for ``cfg`` (seeded; without a focal length, without the sphere
         correction: the node has no calibration, a live camera should still give odometry)."""
@@ -88,7 +98,7 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        self._hrn = self._make_hrn(cfg)
+        self._pipeline.estimator = self._make_hrn(cfg)
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
     def _on_frame(self, msg: Image) -> None:
@@ -108,7 +118,7 @@ class ResonatorNode(Node):
             return
         self._last_t = t_ns
         if not cfg.imu.enabled:
-            self._process(t_ns, image, None)
+            self._process(t_ns, image, imu=False)
             return
         self._pending.append((t_ns, image, time.monotonic()))
         self._drain(force=False)
@@ -130,13 +140,14 @@ class ResonatorNode(Node):
         while self._pending and (force or len(self._pending) > limit
                                  or self._gyro.covers(self._pending[0][0])):
             t_ns, image, _ = self._pending.popleft()
-            self._process(t_ns, image, self._gyro.increment(t_ns))
+            self._process(t_ns, image, imu=True)
             self._gyro.trim(t_ns)
 
-    def _process(self, t_ns: int, image: np.ndarray, gyro_delta: np.ndarray | None) -> None:
+    def _process(self, t_ns: int, image: np.ndarray, *, imu: bool) -> None:
+        """One frame through the pipeline (with the gyro increment when ``imu``), published."""
         t0 = time.perf_counter()
         try:
-            est = self._hrn.step(image, t_ns, gyro_delta=gyro_delta)
+            est = self._pipeline.step(image, t_ns, use_gyro=imu)
         except HrnVoError as err:
             self._reject('tracking', err)
             return

@@ -65,7 +65,7 @@ def dot_sequence(rng: np.random.Generator, seconds: float = 3.0) -> Sequence:
                     groundtruth=Trajectory(gt_t, np.zeros((len(gt_t), 3)), quat))
 
 
-@pytest.mark.slow  # ~35 s under load; the issue's acceptance test, kept in the suite
+@pytest.mark.slow  # ~35 s under load; the graph-equals-run acceptance test, kept in the suite
 def test_demo_graph_reproduces_hrn_vo_run(tmp_path: Path, rng: np.random.Generator,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     """``hrn-vo demo DATASET``: player → packetizer → resonator → recorder processes."""

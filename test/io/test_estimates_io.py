@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.cli.main import main
-from hrn_vo_ros.core.evaluation.protocol import EstimateSeries
+from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.sequence import CameraCalibration, Sequence, Trajectory
 from hrn_vo_ros.core.odometry.geometry import (

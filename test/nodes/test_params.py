@@ -143,7 +143,7 @@ CONFIGS = sorted((Path(__file__).resolve().parents[2] / 'config').glob('*.yaml')
 def test_yaml_keys_are_the_dataclass_fields(path: Path) -> None:
     from hrn_vo_ros.core.configbase import flat_keys
     from hrn_vo_ros.core.events.frames import PacketizerConfig
-    from hrn_vo_ros.core.hrn.network import ResonatorConfig
+    from hrn_vo_ros.core.hrn.config import ResonatorConfig
 
     data = yaml.safe_load(path.read_text())
     for node, algo, opts in (('packetizer_node', PacketizerConfig, PacketizerNodeConfig),
@@ -158,7 +158,7 @@ def test_yaml_keys_are_the_dataclass_fields(path: Path) -> None:
 @pytest.mark.parametrize('path', CONFIGS, ids=[p.stem for p in CONFIGS])
 def test_params_file_declares_the_same_configs_as_yamlconfig(ros: None, path: Path) -> None:
     from hrn_vo_ros.core.events.frames import PacketizerConfig
-    from hrn_vo_ros.core.hrn.network import ResonatorConfig
+    from hrn_vo_ros.core.hrn.config import ResonatorConfig
     from hrn_vo_ros.io.yamlconfig import load_configs
 
     want_pk, want_rs = load_configs(path)

@@ -12,8 +12,8 @@ import pytest
 
 HERE = Path(__file__).resolve().parents[1]
 
-# Official Jazzy RIHS01 hashes (ros_notes.md §1.1, §3; the tf2_msgs one as rosbags computes it
-# for its Jazzy typestore).
+# Official Jazzy RIHS01 hashes (of the Jazzy message definitions; the tf2_msgs one as rosbags
+# computes it for its Jazzy typestore).
 OFFICIAL_HASHES = {
     'event_camera_msgs/msg/EventPacket':
         'RIHS01_d6fa176260b1f37e5a40845305315e150a0f18191241eb64f407442aa29844aa',

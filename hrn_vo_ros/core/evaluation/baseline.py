@@ -37,7 +37,7 @@ Per event frame I (binary, placed in the centre of a zero canvas like the HRN's 
 With ``sphere`` (as the HRN's ``sphere.enabled``) each frame is first warped by the non-rigid
 part of the camera rotation at the previous pose (:mod:`hrn_vo_ros.core.hrn.sphere`).
 
-Output conventions (as the HRN's, see `core.hrn.network`): content moved by +a pixels
+Output conventions (as the HRN's, see ``docs/model.md``): content moved by +a pixels
 gives ``h = -a`` (camera position in the map, x right / y down); a content rotation by +b (from
 +x towards +y) gives ``r = -b`` (right-handed camera roll), unwrapped; ``z`` is the log zoom of
 the content (positive when the camera approaches). No IMU fusion (``gyro_delta`` is ignored).
@@ -56,7 +56,8 @@ from scipy import ndimage
 import scipy.fft as sfft
 
 from hrn_vo_ros.core.configbase import param, validate
-from hrn_vo_ros.core.hrn.network import ResonatorConfig
+from hrn_vo_ros.core.events.frames import check_event_frame
+from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.hrn.sphere import SphereWarp
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.errors import TrackingError
@@ -81,7 +82,7 @@ class BaselineConfig:
                                   hi=10_000_000)
     learn_map: bool = param(True, 'update the map (false: map = first frame)')
     sphere: bool = param(False, 'warp each frame by the non-rigid part of the camera rotation '
-                         "at the last pose (core/sphere.py, as the HRN's sphere.enabled)")
+                         "at the last pose (core/hrn/sphere.py, as the HRN's sphere.enabled)")
     focal_px: float = param(0.0, 'focal length in frame pixels (sphere correction)', lo=0.0,
                             hi=100_000.0)
     scale: bool = param(False, 'estimate the log zoom z (Fourier–Mellin scale)')
@@ -276,14 +277,8 @@ class PhaseCorrelationBaseline:
             TrackingError: for a frame of the wrong shape or with non-finite values.
         """
         c = self.cfg
-        if image.shape != (c.height, c.width):
-            raise TrackingError(f'event frame has shape {image.shape}, expected '
-                                f'({c.height}, {c.width})')
-        img = np.asarray(image, dtype=np.float64)
-        if not np.all(np.isfinite(img)):
-            raise TrackingError('event frame contains non-finite values')
-        on = int(np.count_nonzero(img))
-        if on == 0 or on > c.max_fill * img.size:
+        img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'baseline')
+        if not usable:
             return self._emit(t_ns, valid=False)
         if self._sphere is not None and self.started:
             img = self._sphere.warp(img, self.h, self.v, self.r)

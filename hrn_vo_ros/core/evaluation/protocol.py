@@ -248,8 +248,18 @@ def check_inputs(gt: Trajectory, est: EstimateSeries, kind: str, calib: str,
                                f'(expected {n} values)')
         if not np.all(np.isfinite(arr)):
             raise DatasetError(f'estimate column {name!r} contains NaN or infinite values')
+        if arr.size and float(np.max(np.abs(arr))) > MAX_ABS_ESTIMATE:
+            k = int(np.argmax(np.abs(arr)))
+            raise DatasetError(f'estimate column {name!r} holds {float(arr[k]):g} (row {k + 2}): '
+                               f'values beyond {MAX_ABS_ESTIMATE:g} are corrupt, not readouts; '
+                               'fix or regenerate the estimate file')
     if est.z is not None and est.z.shape != (n,):
         raise DatasetError(f'estimate column z has {est.z.shape[0]} values, expected {n}')
+    if est.z is not None and est.z.size and not (
+            np.all(np.isfinite(est.z)) and float(np.max(np.abs(est.z))) <= MAX_ABS_ESTIMATE):
+        raise DatasetError(f'estimate column z holds NaN, infinite or values beyond '
+                           f'{MAX_ABS_ESTIMATE:g}: fix or regenerate the estimate file')
+    _check_ground_truth(gt)
     if n < MIN_SAMPLES:
         raise DatasetError(f'only {n} estimates: the evaluation needs at least {MIN_SAMPLES} '
                            '(run on a longer sequence)')
@@ -265,6 +275,37 @@ def check_inputs(gt: Trajectory, est: EstimateSeries, kind: str, calib: str,
         raise DatasetError(f'no time overlap: estimates span {est.t[0] * 1e-9:.3f}–'
                            f'{est.t[-1] * 1e-9:.3f} s, ground truth {gt.t[0] * 1e-9:.3f}–'
                            f'{gt.t[-1] * 1e-9:.3f} s (same clock? right dataset?)')
+
+
+MAX_ABS_ESTIMATE = 1e9
+"""Largest readout magnitude :func:`check_inputs` accepts (map pixels, radians, log scale)."""
+MAX_ABS_GT_POSITION = 1e7
+"""Largest ground-truth coordinate (m) :func:`check_inputs` accepts."""
+
+
+def _check_ground_truth(gt: Trajectory) -> None:
+    """Refuse ground truth with non-finite or absurd positions or non-unit quaternions.
+
+    Raises:
+        DatasetError: naming the first bad pose (0-based index and time).
+    """
+    pos = np.asarray(gt.pos, np.float64)
+    quat = np.asarray(gt.quat, np.float64)
+    n = len(gt)
+    if pos.shape != (n, 3) or quat.shape != (n, 4):
+        raise DatasetError(f'ground truth needs (n, 3) positions and (n, 4) quaternions; got '
+                           f'{pos.shape} and {quat.shape} for {n} times')
+    with np.errstate(over='ignore', invalid='ignore'):
+        norm = np.linalg.norm(quat, axis=1)
+        bad_pos = ~np.all(np.isfinite(pos) & (np.abs(pos) <= MAX_ABS_GT_POSITION), axis=1)
+    bad_q = ~(np.abs(norm - 1.0) <= 0.1)
+    bad = np.flatnonzero(bad_pos | bad_q)
+    if bad.size:
+        k = int(bad[0])
+        what = (f'position {pos[k].tolist()} is not finite or beyond {MAX_ABS_GT_POSITION:g} m'
+                if bad_pos[k] else f'quaternion {quat[k].tolist()} is not a unit quaternion')
+        raise DatasetError(f'ground-truth pose {k} (t = {int(gt.t[k]) * 1e-9:.9f} s): {what}; '
+                           'fix or remove that line of the ground truth')
 
 
 def _lag(kind: str, t_raw: F64, est: EstimateSeries, g: GroundTruthArrays,

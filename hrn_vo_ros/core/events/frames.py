@@ -1,4 +1,4 @@
-"""Fixed-count event packets → binary downsampled event frames (paper Methods, hrn_math.md §1.1).
+"""Fixed-count event packets → binary downsampled event frames (paper Methods).
 
 Polarity is dropped. Coordinates are downsampled by a (possibly fractional) factor ``f``:
 
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,7 @@ from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import rectified_pixels, RECTIFY_MODES
 from hrn_vo_ros.core.events.sequence import CameraCalibration
-from hrn_vo_ros.errors import ConfigError, DatasetError
+from hrn_vo_ros.errors import ConfigError, DatasetError, TrackingError
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,6 +184,40 @@ class _Binner:
             counts = np.bincount(flat, minlength=n_packets * npx)
             out = (counts >= self.cfg.min_events_per_pixel).astype(np.uint8)
         return out.reshape(n_packets, self.h, self.w)
+
+
+def check_event_frame(image: NDArray[Any], width: int, height: int, max_fill: float,
+                      section: str) -> tuple[NDArray[np.float64], bool]:
+    """An estimator's check of one event frame: the frame as float64 and whether it is usable.
+
+    A frame is unusable when it has no pixel on, or more than ``max_fill`` of its pixels on (the
+    noise a still camera fills fixed-count packets with); estimators repeat the previous pose
+    for such frames.
+
+    Args:
+        image: The event frame (binary, or any non-negative values).
+        width: The frame width the estimator is configured for.
+        height: Its frame height.
+        max_fill: The largest usable fraction of pixels on.
+        section: The configuration section naming width/height (for the error message).
+
+    Returns:
+        ``(frame, usable)``.
+
+    Shapes:
+        image: (height, width); frame: (height, width).
+
+    Raises:
+        TrackingError: for a frame of the wrong shape or with non-finite values.
+    """
+    if image.shape != (height, width):
+        raise TrackingError(f'event frame has shape {image.shape}, expected ({height}, {width}): '
+                            f'match the packetizer size to {section} width/height')
+    img = np.asarray(image, dtype=np.float64)
+    if image.dtype.kind not in 'biu' and not np.all(np.isfinite(img)):   # ints are finite
+        raise TrackingError('event frame contains non-finite values')
+    on = int(np.count_nonzero(img))
+    return img, not (on == 0 or on > max_fill * img.size)
 
 
 def with_calibration(cfg: PacketizerConfig, calib: CameraCalibration) -> PacketizerConfig:

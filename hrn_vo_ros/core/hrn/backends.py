@@ -20,8 +20,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.configbase import nested, param, validate
+from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.hrn.logpolar import Geometry
-from hrn_vo_ros.core.hrn.network import HRN, ResonatorConfig
+from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.core.spiking.config import SpikingConfig

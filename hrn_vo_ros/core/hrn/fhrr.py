@@ -1,4 +1,4 @@
-"""FHRR vectors and fractional power encoding (FPE) codebooks (hrn_math.md §1.2-1.3).
+"""FHRR vectors and fractional power encoding (FPE) codebooks (``docs/model.md``).
 
 A seed is a unit-phasor vector ``z0 = exp(i φ)``; its (fractional) power is ``z0^a = exp(i a φ)``;
 binding is the elementwise product, unbinding the conjugate, bundling the sum.

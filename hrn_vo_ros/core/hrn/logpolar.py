@@ -1,4 +1,4 @@
-"""The log-polar grid and the transforms Λ (Cartesian → log-polar) and Λ' (back) (hrn_math.md §3).
+"""The log-polar grid and the transforms Λ (Cartesian → log-polar) and Λ' (back); docs/model.md.
 
 Grids:
 
@@ -18,9 +18,9 @@ Resampling matrices (scipy.sparse CSR, real, ≤ 4 bilinear weights per row):
   ``(ln(ρ/r_min)/Δ, θ/(2π/n_θ))`` with θ circular; pixels inside ``r_min`` take the inner ring,
   pixels beyond ``r_max`` are 0.
   T' is *not* pinv(T) (the grid over-samples the centre and drops the corners beyond r_max); we
-  use T' as Λ⁻¹'s resampler, as hrn_math.md §3.1 suggests.
+  use T' as the resampler of Λ' (the inverse direction) instead.
 
-Λ and Λ' (§3.1, §3.2):
+Λ and Λ':
 
 * dense, any codebooks: ``Λ = Φ_LP T Φ_C⁺``, ``Λ' = Φ_C T' Φ_LP⁺`` (:func:`dense_lambdas`);
 * with DFT codebooks (Φ = 2-D DFT): ``Λ x = fft2_LP(T · ifft2_C(x))``,
@@ -191,7 +191,7 @@ def lp_to_cart_matrix(g: Geometry) -> sp.csr_matrix:
 
 
 class LogPolarTransform:
-    """Λ and Λ' for DFT codebooks in the fast FFT form (hrn_math.md §3.2).
+    """Λ and Λ' for DFT codebooks in the fast FFT form.
 
     Vectors are 2-D arrays in the frequency domain: Cartesian (H_c, W_c), log-polar
     (n_rho, n_theta). ``Λ x = fft2(T · ifft2(x))``, ``Λ' y = fft2(T' · ifft2(y))``.
@@ -296,7 +296,7 @@ def dense_lambdas(phi_c: NDArray[np.complexfloating], phi_lp: NDArray[np.complex
                   g: Geometry, *, rcond: float = 1e-6,
                   dtype: type[np.complexfloating] = np.complex128
                   ) -> tuple[NDArray[np.complexfloating], NDArray[np.complexfloating]]:
-    """Dense Λ = Φ_LP T Φ_C⁺ and Λ' = Φ_C T' Φ_LP⁺ for any codebooks (§3.1).
+    """Dense Λ = Φ_LP T Φ_C⁺ and Λ' = Φ_C T' Φ_LP⁺ for any codebooks.
 
     Args:
         phi_c: Cartesian codebook, column ``x + W_c y`` = h0^x ⊙ v0^y.

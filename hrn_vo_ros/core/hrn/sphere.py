@@ -14,7 +14,7 @@ field biases the roll by a content-dependent amount (simulated shapes_rotation, 
     ``u' = Rot(-r) (P(S · Rz(r) · P⁻¹(u)) - c)``,
 
 where ``c = (h, v)`` is the camera position on the chart, ``r`` the roll (the pose estimate of
-the previous frame, readout conventions of `core.hrn.network`), ``P`` the equidistant
+the previous frame, readout conventions of ``docs/model.md``), ``P`` the equidistant
 projection with focal length ``f`` (frame pixels), ``Rz(r)`` the roll about the optical axis and
 ``S`` the swing (the rotation about an axis in the image plane) that turns the optical axis to
 ``P⁻¹(c)``. For the exact pose, ``c + Rot(r) u'`` is the chart point the pixel sees, so the

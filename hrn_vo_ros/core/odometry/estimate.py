@@ -30,6 +30,12 @@ class Estimate:
             codebook entries (for readout images), see ``HRN.readout_axis``.
         valid: False when the frame carried no usable input (empty frame) and the previous pose
             was repeated.
+        quality: Tracking quality of the frame in [0, 1] (the frame-map overlap at the
+            estimate relative to its running reference, see ``docs/model.md``); 1 when not
+            computed.
+        state: Tracking state: ``tracking``, ``degraded`` (low quality: no map update, no
+            velocity prediction) or ``lost`` (the pose is held at the last good one while the
+            network re-localises).
 
     Shapes:
         similarity[name]: (K_name,) float64.
@@ -46,3 +52,5 @@ class Estimate:
     map_updated: bool = False
     similarity: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     valid: bool = True
+    quality: float = 1.0
+    state: str = 'tracking'

@@ -1,6 +1,6 @@
 """From HRN readouts (h, v, r [, z]) to a metric/angular pose with covariance (REP-103/105).
 
-The resonator reads out, per event frame (Model A of hrn_math.md §2.3):
+The resonator reads out, per event frame (its factors: the view against the map):
 
 * ``h``, ``v``: the camera position in the map, in downsampled pixels (x right, y down);
 * ``r``: the roll about the optical axis in radians (right-handed about the optical z axis);

@@ -1,4 +1,4 @@
-"""Spiking phasor emulation of the HRN under Loihi constraints (issue 7, hrn_math.md §7).
+"""Spiking phasor emulation of the HRN under Loihi constraints (``docs/spiking.md``).
 
 numpy only (Lava cannot be a dependency). Modules: :mod:`.config` (constraints and their
 sources), :mod:`.neurons` (phase-to-timing code, resonate-and-fire dynamics), :mod:`.synapses`

@@ -18,11 +18,11 @@ Loihi architecture file citing the same paper, SANA-FE ``arch/loihi.yaml``, agre
 2.1 ns within-tile spike latency and the 3.0 pJ / 4.1 ns east-west hop; it lists 4.2 pJ for a
 north-south hop). The synaptic-op and neuron-update energies (23.6 pJ, 52/81 pJ) are widely
 quoted but were not verified against the paper text in this repository. Treat every energy and
-time below as an order-of-magnitude estimate, not a measurement; the companion paper's Loihi
-figures (hrn_math.md §7.2) were not available.
+time below as an order-of-magnitude estimate, not a measurement; no published Loihi figures of
+the HRN itself were available to compare with.
 
 CPU counts: the float HRN's real floating-point operations (one multiply or add = 1 op; a complex
-multiply-add = 8 ops) for the FFT fast path and the dense reference path (hrn_math.md §3.3).
+multiply-add = 8 ops) for the FFT fast path and the dense reference path (``docs/model.md``).
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """The HRN as spiking phasor populations: the float HRN's equations, spiking neurons underneath.
 
 :class:`SpikingHRN` is :class:`~hrn_vo_ros.core.hrn.network.HRN` (same ``step``, readout, map, IMU
-prediction) whose fast engine is :class:`SpikingEngine`. The engine keeps the float engine's
-equations (Model A, hrn_math.md §2.3) and overrides its two hooks:
+prediction) running on :class:`SpikingEngine`, an :class:`~hrn_vo_ros.core.hrn.engine.Engine`
+built on :class:`~hrn_vo_ros.core.hrn.fast.FastEngine`. It keeps the fast engine's equations
+(Model A, ``docs/model.md``) and replaces its two extension points:
 
 * ``send(name, x)``: the populations S (log-polar input), m (map), p (p̂ = Λ'(S ⊙ r̂*)) and
   l (l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂)) send their vectors as phase-coded spikes (one per neuron and cycle,
@@ -34,16 +35,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.fast import FastEngine
 from hrn_vo_ros.core.hrn.logpolar import Geometry
-from hrn_vo_ros.core.hrn.network import (
-    _Engine,
-    _FastEngine,
-    cleanup_weights,
-    Floats,
-    HRN,
-    ResonatorConfig,
-    state_gamma,
-)
+from hrn_vo_ros.core.hrn.network import HRN
+from hrn_vo_ros.core.hrn.shared import cleanup_weights, Floats, state_gamma
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.accounting import cores_for, IterationAccount
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
@@ -60,7 +56,7 @@ Real = NDArray[np.float64]
 PIPELINE_DEPTH = 9
 
 
-class SpikingEngine(_FastEngine):
+class SpikingEngine(FastEngine):
     """The fast (DFT, factorised) engine with spiking populations (see the module docstring).
 
     Its S, m, p and l populations carry full 2-D spectra, so it runs the general form of the
@@ -110,7 +106,7 @@ class SpikingEngine(_FastEngine):
         return sp.decode()
 
     def update(self, name: str, x: Complex, a: Complex) -> Complex:
-        if not a.any():   # no input spikes: no update, as the float engines (hrn.blend_state)
+        if not a.any():   # no input spikes: no update, as the float engines (blend_state)
             return x
         cl = self.cleanups[name]
         sp, _ = cl.step(a, self.spikes.get(name))
@@ -196,18 +192,20 @@ class SpikingHRN(HRN):
         ConfigError: for ``path='dense'`` or invalid spiking settings.
     """
 
+    _spiking_engine: SpikingEngine
+
     def __init__(self, cfg: ResonatorConfig | None = None, *, rng: np.random.Generator,
                  spiking: SpikingConfig | None = None, **kwargs: Any) -> None:
         self.spiking = spiking if spiking is not None else SpikingConfig()
         self.last_account: IterationAccount | None = None
-        super().__init__(cfg, rng=rng, **kwargs)
-
-    def _make_engine(self, rng: np.random.Generator,
-                     dense_dtype: type[np.complexfloating]) -> _Engine:
-        if self.cfg.path != 'fast':
+        if (cfg if cfg is not None else ResonatorConfig()).path != 'fast':
             raise ConfigError('the spiking backend needs path: fast (DFT codebooks): its neuron '
                               'populations are the factorised ones; set path to fast')
-        self._spiking_engine = SpikingEngine(self.cfg, self.geometry, self.spiking)
+        super().__init__(cfg, rng=rng, engine=self._build_engine, **kwargs)
+
+    def _build_engine(self, cfg: ResonatorConfig, g: Geometry) -> SpikingEngine:
+        """The network's engine (``HRN(engine=...)``), kept typed for the spike outputs."""
+        self._spiking_engine = SpikingEngine(cfg, g, self.spiking)
         return self._spiking_engine
 
     def step(self, image: NDArray[Any], t_ns: int, *,

@@ -1,6 +1,6 @@
 """The resonator cleanup ``x <- (1-gamma) x + gamma f(X p(Re(X^H u))))`` as spiking layers.
 
-Layers of one factor (hrn_math.md §7.1 "Mapping to the HRN"), each one oscillation cycle:
+Layers of one factor (the HRN cleanup mapped onto phasor neurons), each one oscillation cycle:
 
 1. **input** phasor neurons: the (marginalised) unbound input ``u`` as phase-coded spikes with
    graded payloads (:func:`~hrn_vo_ros.core.spiking.neurons.encode`);

@@ -6,7 +6,7 @@ Every limit below names its source. Three kinds of source are used:
   On-Chip Learning", IEEE Micro 38(1):82-99, 2018, doi:10.1109/MM.2018.112130359 (Loihi 1: 24-bit
   signed compartment voltage, 8-bit-mantissa synaptic weights with a per-connection exponent,
   per-synapse delays, 1024 compartments and 4096 input axons per core, 128 cores per chip).
-* **hrn_math.md §7.1**: the project's notes, citing the Lava resonate-and-fire model
+* **Lava and brian2_loihi**: the Lava resonate-and-fire model
   (``lava-nc/lava`` ``proc/rf``: 12-bit sin/cos decay constants, 24-bit state) and the
   brian2_loihi emulator (delays 0..62 steps, weights -256..254 in mixed-sign mode, precision set
   by ``num_weight_bits``, scale 2**(6 + wgt_exp) with wgt_exp in [-8, 7]).
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from hrn_vo_ros.core.configbase import param, validate
 from hrn_vo_ros.errors import ConfigError
 
-#: Largest synaptic delay of a Loihi 1 synapse in time steps (hrn_math.md §7.1, brian2_loihi).
+#: Largest synaptic delay of a Loihi 1 synapse in time steps (brian2_loihi).
 LOIHI_MAX_DELAY = 62
 
 

@@ -26,7 +26,7 @@ step ``round(arg z[T] / omega)``, if ``|z[T]|`` reaches its threshold: its spike
 phase of the summed input and its (unit or graded) spike is the phasor projection ``f`` for free.
 
 Fixed point (``precision='loihi'``; Lava's bit-accurate RF model uses 12-bit sin/cos constants and
-a 24-bit state, hrn_math.md §7.1): with ``D`` fractional bits, ``c = round(cos(omega) 2^D)``,
+a 24-bit state): with ``D`` fractional bits, ``c = round(cos(omega) 2^D)``,
 ``s = round(sin(omega) 2^D)``,
 
     re <- re + a_re ;  im <- im + a_im

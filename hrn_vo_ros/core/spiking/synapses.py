@@ -1,13 +1,13 @@
 """Complex synapses between phasor populations, with Loihi weight and delay limits.
 
-Weights (Davies et al. 2018; brian2_loihi in hrn_math.md §7.1): a synaptic weight is a signed
+Weights (Davies et al. 2018; the brian2_loihi emulator): a synaptic weight is a signed
 integer mantissa of ``B`` bits (``weight_bits``; Loihi: 8, reduced by ``num_weight_bits``) times a
 power of two shared by all synapses of one connection (Loihi: ``2^(6 + wgt_exp)``,
 ``wgt_exp`` in [-8, 7]). Here the shared exponent is chosen so that the largest weight component
 of the connection uses the full mantissa range ``[-2^(B-1), 2^(B-1) - 1]``; the absolute range of
 ``wgt_exp`` is not enforced because the emulation's value unit is arbitrary ([design]).
 
-Two realisations of a complex weight ``w = |w| e^{i psi}`` (hrn_math.md §7.1):
+Two realisations of a complex weight ``w = |w| e^{i psi}``:
 
 * ``synapse='kick'``: a complex impulse into a resonate-and-fire neuron, two real weights
   ``(Re w, Im w)`` (two synaptic operations per spike, like Lava's RF with real and imaginary
@@ -78,7 +78,7 @@ def quantise_weights(w: Complex | Real, bits: int) -> QuantisedWeights:
     return QuantisedWeights(re, im, exp)
 
 
-#: Range of Loihi's weight scale ``2^(6 + wgt_exp)``, ``wgt_exp`` in [-8, 7] (hrn_math.md §7.1).
+#: Range of Loihi's weight scale ``2^(6 + wgt_exp)``, ``wgt_exp`` in [-8, 7] (brian2_loihi).
 SHIFT_RANGE = (-2, 13)
 
 
@@ -224,7 +224,7 @@ def marginal_drive(spikes: Spikes, axis: int, cfg: SpikingConfig,
                    counts: LayerCounts | None = None) -> Complex:
     """Sum a 2-D phasor population along ``axis`` into RF neurons (unit weights, no delay).
 
-    This is the fan-in reduction of the DFT cleanups (hrn_math.md §3.2: ``H† u`` needs only the
+    This is the fan-in reduction of the DFT cleanups (``docs/model.md``: ``H† u`` needs only the
     ``k_y``-marginal of ``u``): neuron ``k`` of the other axis receives the spikes of its row or
     column through equal weights, so its end-of-cycle state is the complex sum of their values.
 

@@ -1,4 +1,4 @@
-"""Pieces shared by the payload codecs: byte views, forward fill, trigger arrays."""
+"""Pieces shared by the payload codecs: byte views, time_base checks, forward fill, triggers."""
 
 from __future__ import annotations
 
@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+
+from hrn_vo_ros.errors import DecodeError
 
 U8 = NDArray[np.uint8]
 """A payload as a uint8 array."""
@@ -16,6 +18,32 @@ def as_bytes(payload: bytes | U8) -> U8:
     if isinstance(payload, np.ndarray):
         return payload
     return np.frombuffer(payload, np.uint8)
+
+
+INT64_MAX = (1 << 63) - 1
+"""Largest sensor time (int64 ns) an event may have."""
+
+
+def check_time_base(time_base: int, encoding: str, span_ns: int) -> int:
+    """``time_base`` as an int, refused when ``time_base + span_ns`` leaves int64 ns.
+
+    An EventPacket's ``time_base`` is a uint64: values at or above 2^63 (or so close below that
+    the packet's own offsets wrap) would turn into negative or overflowing sensor times.
+
+    Args:
+        time_base: The packet's ``time_base`` field (ns).
+        encoding: The packet encoding, for the message.
+        span_ns: The largest offset the encoding can add to ``time_base``.
+
+    Raises:
+        DecodeError: for a negative ``time_base`` or one whose events would pass 2^63 - 1 ns.
+    """
+    tb = int(time_base)
+    if tb < 0 or tb > INT64_MAX - span_ns:
+        raise DecodeError(f'{encoding} packet time_base {tb} ns is outside 0..'
+                          f'{INT64_MAX - span_ns} (its events would overflow int64 ns sensor '
+                          'time): a corrupt packet, or a driver writing an invalid time_base')
+    return tb
 
 
 def ffill_at(mask: NDArray[np.bool_], values: NDArray[np.int64], initial: int,

@@ -30,11 +30,21 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.errors import DecodeError
-from hrn_vo_ros.io.codecs.common import as_bytes, expand_masks, ffill_at, keep_in_sensor, U8
+from hrn_vo_ros.io.codecs.common import (
+    as_bytes,
+    check_time_base,
+    expand_masks,
+    ffill_at,
+    INT64_MAX,
+    keep_in_sensor,
+    U8,
+)
 
 CMP_TIME_HIGH, CMP_TIME_LOW, CMP_ADDR_X, CMP_ADDR_Y, CMP_VECT_BASE_Y, CMP_VECT_8 = range(6)
 LIBCAER_ROLLOVER_US = 1 << 31
 """The libcaer timestamp counter wraps after this many microseconds."""
+CMP_MAX_OFFSET_NS = ((1 << 24) - 1) * 1000
+"""Largest offset (ns) a ``libcaer_cmp`` packet adds to its ``time_base``."""
 
 
 def decode_libcaer(payload: bytes | U8, *, time_base: int, is_bigendian: bool = False,
@@ -42,8 +52,10 @@ def decode_libcaer(payload: bytes | U8, *, time_base: int, is_bigendian: bool = 
     """Decode a ``libcaer`` payload into events at sensor time (int64 ns).
 
     Raises:
-        DecodeError: if the payload is not a whole number of 8-byte records.
+        DecodeError: if the payload is not a whole number of 8-byte records, or a sensor time
+            would be negative or overflow int64 ns (a corrupt ``time_base`` or timestamp).
     """
+    time_base = check_time_base(time_base, 'libcaer', 0)
     buf = as_bytes(payload)
     if buf.size % 8:
         raise DecodeError(f'libcaer payload of {buf.size} bytes is not a multiple of 8 '
@@ -53,7 +65,13 @@ def decode_libcaer(payload: bytes | U8, *, time_base: int, is_bigendian: bool = 
     data = rec['data'].astype(np.int64)
     ts = rec['ts'].astype(np.int64)
     rolls = np.concatenate(([0], np.cumsum(ts[1:] < ts[:-1]))) if ts.size else ts
-    t = np.int64(time_base) + (ts + rolls * LIBCAER_ROLLOVER_US) * 1000
+    off_us = ts + rolls * LIBCAER_ROLLOVER_US
+    if off_us.size:
+        lo, hi = time_base + int(off_us.min()) * 1000, time_base + int(off_us.max()) * 1000
+        if lo < 0 or hi > INT64_MAX:
+            raise DecodeError(f'libcaer packet times {lo}..{hi} ns leave 0..{INT64_MAX} ns '
+                              f'(time_base {time_base}): a corrupt time_base or timestamp')
+    t = np.int64(time_base) + off_us * 1000
     return EventArray.from_arrays(t, (data >> 17) & 0x7FFF, (data >> 2) & 0x7FFF,
                                   (data >> 1) & 1)
 
@@ -79,8 +97,10 @@ class LibcaerCmpDecoder:
         """Events of one packet at sensor time (int64 ns), continuing x and the vector state.
 
         Raises:
-            DecodeError: on an odd byte count or an unknown word type.
+            DecodeError: on an odd byte count, an unknown word type, or a ``time_base`` whose
+                events would overflow int64 ns.
         """
+        time_base = check_time_base(time_base, 'libcaer_cmp', CMP_MAX_OFFSET_NS)
         w, code = _cmp_words(payload, is_bigendian)
         n = w.size
         if n == 0:

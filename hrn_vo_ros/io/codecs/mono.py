@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.errors import DecodeError
-from hrn_vo_ros.io.codecs.common import as_bytes, U8
+from hrn_vo_ros.io.codecs.common import as_bytes, check_time_base, U8
 
 MONO_MAX_DT = (1 << 32) - 1
 """Largest ``dt`` of a mono word (ns): a mono packet spans at most this."""
@@ -89,8 +89,10 @@ def decode_mono(payload: bytes | U8, *, time_base: int, is_bigendian: bool = Fal
     """Decode a ``mono`` payload into events at sensor time ``time_base + dt``.
 
     Raises:
-        DecodeError: if the payload is not a whole number of 8-byte words.
+        DecodeError: if the payload is not a whole number of 8-byte words, or ``time_base`` is
+            negative or so large that ``time_base + dt`` would overflow int64 ns.
     """
+    time_base = check_time_base(time_base, 'mono', MONO_MAX_DT)
     buf = as_bytes(payload)
     if buf.size % 8:
         raise DecodeError(f'mono payload of {buf.size} bytes is not a multiple of 8 '

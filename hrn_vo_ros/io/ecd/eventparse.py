@@ -28,6 +28,7 @@ from hrn_vo_ros.io.ecd.source import (
 from hrn_vo_ros.io.ecd.times import format_ns, MAX_SECONDS, NS_PER_S, seconds_to_ns
 
 _CHUNK_BYTES = 4 << 20  # text parsed at a time: cache-friendly (about 200k lines)
+_MAX_FIELD = 10**9  # larger x, y, p tokens are corrupt (and would overflow int64 arrays)
 
 
 def iter_events(path: Path | str, *, chunk_events: int = 1_000_000,
@@ -252,6 +253,11 @@ def _parse_slow(buf: bytes, first_line: int, where: Path, *,
             hint = ' (the file looks truncated)' if truncated else ''
             msg = f'malformed event line {_show(raw)}: {err}{hint}'
             raise DatasetError(msg, path=where, line=lineno) from None
+        if not (abs(x) <= _MAX_FIELD and abs(y) <= _MAX_FIELD and abs(p) <= _MAX_FIELD):
+            msg = (f'event line {_show(raw)} has a coordinate or polarity of more than '
+                   f'{len(str(_MAX_FIELD))} digits: a corrupt line (x, y are sensor pixels, '
+                   'p is 0 or 1)')
+            raise DatasetError(msg, path=where, line=lineno)
         out[k] = (t, x, y, p)
         line_of[k] = lineno
         k += 1

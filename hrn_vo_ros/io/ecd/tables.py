@@ -117,19 +117,78 @@ def _check_count(src: SequenceSource, name: str, key: str, n: int) -> None:
                            'truncated or was edited', path=src.where(name))
 
 
+MAX_ABS_GYRO = 1e3
+"""Largest plausible angular rate (rad/s; MEMS gyros saturate below 100 rad/s)."""
+MAX_ABS_ACC = 1e4
+"""Largest plausible acceleration (m/s^2; about 1000 g)."""
+MAX_ABS_POSITION = 1e7
+"""Largest plausible ground-truth coordinate (m)."""
+QUAT_NORM_TOL = 0.1
+"""Ground-truth quaternions must have a norm within 1 +- this (unit quaternions)."""
+
+
+def _line_of_row(text: str, row: int) -> int:
+    """1-based line number of data row ``row`` of a table (blank and ``#`` lines skipped)."""
+    k = -1
+    for i, line in enumerate(text.split('\n')):
+        parts = line.split()
+        if parts and not parts[0].startswith('#'):
+            k += 1
+            if k == row:
+                return i + 1
+    return row + 1
+
+
+def _check_range(src: SequenceSource, name: str, values: NDArray[np.float64], limit: float,
+                 what: str) -> None:
+    """Refuse table values beyond ``limit`` in magnitude, naming the line.
+
+    Raises:
+        DatasetError: for the first row holding such a value.
+    """
+    bad = np.flatnonzero(np.any(np.abs(values) > limit, axis=1))
+    if bad.size:
+        row = int(bad[0])
+        line = _line_of_row(src.read_text(name), row)
+        raise DatasetError(f'{what} {values[row].tolist()} exceeds {limit:g} in magnitude: a '
+                           'corrupt line, or the wrong unit; fix or remove the line',
+                           path=src.where(name), line=line)
+
+
 def read_imu(path: Path | str) -> ImuData:
-    """``imu.txt`` (``t ax ay az gx gy gz``) of a sequence folder or zip."""
+    """``imu.txt`` (``t ax ay az gx gy gz``) of a sequence folder or zip.
+
+    Raises:
+        DatasetError: for a malformed line (see :func:`parse_table`), or an implausible value
+            (gyro beyond :data:`MAX_ABS_GYRO` rad/s, acceleration beyond :data:`MAX_ABS_ACC`).
+    """
     with SequenceSource(path) as src:
         t, v = _read_table(src, IMU_FILE, 't ax ay az gx gy gz')
         _check_count(src, IMU_FILE, 'imu', t.size)
+        _check_range(src, IMU_FILE, v[:, :3], MAX_ABS_ACC, 'acceleration (m/s^2)')
+        _check_range(src, IMU_FILE, v[:, 3:], MAX_ABS_GYRO, 'angular rate (rad/s)')
     return ImuData(t=t, acc=np.ascontiguousarray(v[:, :3]), gyro=np.ascontiguousarray(v[:, 3:]))
 
 
 def read_groundtruth(path: Path | str) -> Trajectory:
-    """``groundtruth.txt`` (``t px py pz qx qy qz qw``) of a sequence folder or zip."""
+    """``groundtruth.txt`` (``t px py pz qx qy qz qw``) of a sequence folder or zip.
+
+    Raises:
+        DatasetError: for a malformed line (see :func:`parse_table`), a position beyond
+            :data:`MAX_ABS_POSITION` m or a quaternion that is not of unit norm (a zero one).
+    """
     with SequenceSource(path) as src:
         t, v = _read_table(src, GROUNDTRUTH_FILE, 't px py pz qx qy qz qw')
         _check_count(src, GROUNDTRUTH_FILE, 'groundtruth', t.size)
+        _check_range(src, GROUNDTRUTH_FILE, v[:, :3], MAX_ABS_POSITION, 'position (m)')
+        norm = np.linalg.norm(v[:, 3:], axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1.0) > QUAT_NORM_TOL)
+        if bad.size:
+            row = int(bad[0])
+            line = _line_of_row(src.read_text(GROUNDTRUTH_FILE), row)
+            raise DatasetError(f'quaternion {v[row, 3:].tolist()} has norm {norm[row]:.3g}, '
+                               'expected a unit quaternion (qx qy qz qw): a corrupt line; fix '
+                               'or remove it', path=src.where(GROUNDTRUTH_FILE), line=line)
     return Trajectory(t=t, pos=np.ascontiguousarray(v[:, :3]),
                       quat=np.ascontiguousarray(v[:, 3:]))
 

@@ -16,7 +16,8 @@ from hrn_vo_ros.core.evaluation.baseline import (
     PhaseCorrelationBaseline,
     run_baseline,
 )
-from hrn_vo_ros.core.hrn.network import HRN, ResonatorConfig
+from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.errors import ConfigError, TrackingError
 
 

@@ -332,3 +332,25 @@ def test_evaluate_dispatches_to_the_kind_metric_function(kind: str) -> None:
     direct = KIND_METRICS[kind](samples, res.series.calib, res.series.test)
     assert direct.metrics == res.metrics
     np.testing.assert_array_equal(direct.err, res.series.err)
+
+
+def test_umeyama_scale_keeps_the_reflection_sign() -> None:
+    """A mirrored target without reflections allowed: the scale is tr(DS)/var (Eq. 42), the
+    least-squares scale of the best proper rotation (found here by brute force)."""
+    from hrn_vo_ros.core.evaluation.alignment import umeyama
+
+    rng = np.random.default_rng(4)
+    src = rng.normal(size=(50, 2)) * [3.0, 1.0]
+    dst = (src * [1.0, -1.0]) * 2.5
+    s, R, _ = umeyama(src, dst, allow_reflection=False)
+    xc, yc = src - src.mean(0), dst - dst.mean(0)
+    best = (np.inf, 0.0)
+    for a in np.linspace(-np.pi, np.pi, 200_001):
+        c, sn = np.cos(a), np.sin(a)
+        r = xc @ np.array([[c, -sn], [sn, c]]).T
+        scale = float(np.sum(r * yc) / np.sum(xc * xc))
+        err = float(np.sum((yc - scale * r) ** 2))
+        best = min(best, (err, scale))
+    assert np.linalg.det(R) > 0
+    assert s == pytest.approx(abs(best[1]), rel=1e-3)  # -s with R(a + pi) is the same fit
+    assert s < 2.4  # the scale of the mirrored fit would be 2.5

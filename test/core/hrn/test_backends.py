@@ -14,7 +14,7 @@ from hrn_vo_ros.core.hrn.backends import (
     ResonatorBackend,
     SpikingDiagnostics,
 )
-from hrn_vo_ros.core.hrn.network import ResonatorConfig
+from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.errors import ConfigError
 
 POSE = (4.0, 2.0, 0.2)

@@ -9,14 +9,13 @@ import pytest
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn import fhrr
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend
-from hrn_vo_ros.core.hrn.network import (
+from hrn_vo_ros.core.hrn.config import CleanupConfig, ResonatorConfig
+from hrn_vo_ros.core.hrn.network import HRN
+from hrn_vo_ros.core.hrn.shared import (
     blend_state,
     cleanup_weights,
-    CleanupConfig,
-    HRN,
     population_readout,
     refine_exponent,
-    ResonatorConfig,
     state_gamma,
 )
 from hrn_vo_ros.core.spiking.config import SpikingConfig

@@ -10,7 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.hrn.network import HRN, needs_focal, ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.sphere import SphereWarp
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.yamlconfig import load_configs

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.hrn.network import ResonatorConfig
+from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.spiking.accounting import cpu_ops, IterationAccount, LoihiCosts
 from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup

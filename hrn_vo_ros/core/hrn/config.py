@@ -1,0 +1,272 @@
+"""Configuration of the hierarchical resonator network (:class:`ResonatorConfig` and sections).
+
+Every section is a frozen, validated dataclass built with :mod:`hrn_vo_ros.core.configbase`
+(YAML and ROS-parameter ready); nested sections map to nested YAML dictionaries. What each
+switch beyond the paper does, and why, is in ``docs/model.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from hrn_vo_ros.core.configbase import nested, param, validate
+from hrn_vo_ros.core.hrn.logpolar import LogPolarConfig, make_geometry
+from hrn_vo_ros.errors import ConfigError
+
+NONLINEARITIES = ('identity', 'relu', 'relu_k', 'exp')
+
+
+@dataclass(frozen=True, slots=True)
+class CodebookConfig:
+    """Codebooks and the Cartesian canvas."""
+
+    kind: str = param('dft', 'dft: centred DFT seeds (fast path); random: seeded random FPE '
+                      'seeds (dense path only)', choices=('dft', 'random'), read_only=True)
+    dim: int = param(0, 'vector dimension N of random codebooks (0: canvas pixels); DFT '
+                     'codebooks have N = canvas pixels', lo=0, hi=100_000, read_only=True)
+    canvas_width: int = param(0, 'Cartesian canvas width in frame pixels (0: frame width); '
+                              'larger keeps wrapped-around content out of the map',
+                              lo=0, hi=4096, read_only=True)
+    canvas_height: int = param(0, 'Cartesian canvas height in frame pixels (0: frame height)',
+                               lo=0, hi=4096, read_only=True)
+    rcond: float = param(1e-6, 'relative cut-off of the pseudo-inverses of random codebooks',
+                         lo=0.0, hi=1.0, read_only=True)
+    kernel_sigma: float = param(0.0, 'encode each event pixel as a Gaussian blob of this std '
+                                '(frame pixels; 0: one pixel): s = Phi (G * I), with DFT '
+                                'codebooks s = (Phi I) . g, a fixed weighting of the '
+                                'frequencies (FPE kernel shaping); smooths the correlation '
+                                'peaks of sparse binary frames', lo=0.0, hi=20.0,
+                                read_only=True)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class CleanupConfig:
+    """Cleanup C_X(u) = f(X p(Re X† u)) and the state update speed."""
+
+    nonlinearity: str = param('exp', 'p: identity, relu, relu_k (relu to the power k) or exp '
+                              '(exp(beta (c / max|c| - 1)), a softmax)', choices=NONLINEARITIES)
+    k: float = param(3.0, 'exponent of relu_k', lo=0.1, hi=100.0)
+    beta: float = param(10.0, 'sharpness of exp, in units of the peak similarity', lo=0.0,
+                        hi=1000.0)
+    gamma: float = param(0.5, 'state update speed: x <- (1-gamma) x + gamma C_X(.)', lo=0.0,
+                         hi=1.0)
+    iterations_per_frame: int = param(1, 'resonator iterations per event frame', lo=1, hi=100)
+    init: str = param('identity', 'initial states: identity (the known transform between the '
+                      'first frame and the map it defines) or random (unit phasors, as the paper)',
+                      choices=('identity', 'random'))
+    whiten: bool = param(False, 'phasor-project each unbinding product before its cleanup, '
+                         'C_X(f(u)) (phase correlation; an experiment that loses track on '
+                         'the simulated sequences, see docs/model.md)')
+    predict_velocity: float = param(0.0, 'constant-velocity prediction (0: off): before a '
+                                    'frame without a gyro delta, bind the h/v/r states with '
+                                    'this fraction of their velocity (readout change per '
+                                    'frame), the way the gyro prediction binds them with the '
+                                    'integrated rate', lo=0.0, hi=1.0)
+    predict_smoothing: float = param(0.5, 'weight of the newest frame-to-frame readout change '
+                                     'in the velocity (an exponential average; 1: the last '
+                                     'change only, which amplifies per-frame readout noise)',
+                                     lo=0.01, hi=1.0)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class MapConfig:
+    """The allocentric map and its anchored update (paper Eq. 9)."""
+
+    learn: bool = param(True, "update the map (false: the paper's ablation, map = first frame)")
+    mu1: float = param(0.9, 'weight of the previous map', lo=0.0, hi=1.0)
+    mu2: float = param(0.01, 'weight of the initial map (anchoring)', lo=0.0, hi=1.0)
+    block_iterations: int = param(100, 'no map update during the first iterations',
+                                  lo=0, hi=10_000_000)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if self.mu1 + self.mu2 > 1.0:
+            raise ConfigError(f'MapConfig: mu1 + mu2 = {self.mu1 + self.mu2} must be <= 1')
+
+
+@dataclass(frozen=True, slots=True)
+class ReadoutConfig:
+    """Population-vector readout (paper Eq. 7)."""
+
+    half_window: int = param(5, 'neighbours on each side of the peak in the population vector',
+                             lo=0, hi=1000)
+    source: str = param('state', 'what the population vector reads: state (Re X^H x, the '
+                        'paper) or drive (Re X^H u of the last cleanup input: a smooth '
+                        'correlation peak that keeps sub-pixel detail the sharpened state '
+                        'loses)', choices=('state', 'drive'))
+    refine: bool = param(False, 'refine each h/v/r/z readout to the maximum of the continuous '
+                         'similarity Re<x, seed^t> near the population vector (fractional '
+                         'powers are band-limited shifts): removes the pull towards whole '
+                         'codebook entries (pixel locking) of the sharpened state')
+    refine_input: str = param('', 'comma-separated factors (h, v, r, z) whose refine reads the '
+                              'phasor projection of their last cleanup input, phasor(X X^H u), '
+                              'instead of the state: the continuous peak of the phase-only '
+                              'correlation, not sharpened by p (more precise on the slow arm, '
+                              'less robust on fast motion); empty: all read the state')
+
+    def __post_init__(self) -> None:
+        validate(self)
+        bad = [f for f in self.input_factors if f not in ('h', 'v', 'r', 'z')]
+        if bad:
+            raise ConfigError(f'ReadoutConfig.refine_input: unknown factor(s) {bad}; use a '
+                              'comma-separated subset of h, v, r, z (or empty)')
+
+    @property
+    def input_factors(self) -> tuple[str, ...]:
+        """The factors named in ``refine_input``."""
+        return tuple(f.strip() for f in self.refine_input.split(',') if f.strip())
+
+
+@dataclass(frozen=True, slots=True)
+class ScaleConfig:
+    """The optional scale (zoom) factor z in the log-polar partition."""
+
+    enabled: bool = param(False, 'estimate a scale factor z (translation along the optical axis)',
+                          read_only=True)
+    max_log_scale: float = param(0.4, 'codebook covers log scales in [-max, max]', lo=0.001,
+                                 hi=5.0, read_only=True)
+    entries: int = param(41, 'codebook entries over that range (fractional ring shifts)', lo=3,
+                         hi=10_000, read_only=True)
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+
+@dataclass(frozen=True, slots=True)
+class ImuConfig:
+    """IMU prediction by fractional binding (paper Eq. 10)."""
+
+    enabled: bool = param(False, 'bind the states with the integrated gyro before each frame')
+    gamma: float = param(0.0, 'state update speed while the IMU prediction is on (0: '
+                         'cleanup.gamma); the gyro carries the fast motion, so the states can '
+                         'trust the prediction more, like a smaller Kalman gain', lo=0.0, hi=1.0,
+                         read_only=True)
+    gate_deg: float = param(0.0, 'innovation gate (0: off): a frame whose readout differs from '
+                            'the gyro prediction by more than this angle (roll, or pan/tilt '
+                            'through focal_px) is rejected: the states keep the prediction '
+                            'and the map is not updated, so one bad frame cannot slip the map',
+                            lo=0.0, hi=180.0)
+    camera_from_imu: tuple[float, ...] = param(
+        (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+        'rotation IMU axes -> camera axes (x right, y down, z forward), row-major 3x3',
+        lo=-1.0, hi=1.0)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if len(self.camera_from_imu) != 9:
+            raise ConfigError('ImuConfig.camera_from_imu needs 9 numbers (a row-major 3x3)')
+
+
+@dataclass(frozen=True, slots=True)
+class SphereConfig:
+    """Sphere correction of rotating-camera frames (:mod:`hrn_vo_ros.core.hrn.sphere`)."""
+
+    enabled: bool = param(False, 'warp each frame by the non-rigid part of a camera rotation at '
+                          'the last pose estimate, so that it is a rigid shift and roll of the '
+                          'map (needs equidistant-rectified frames and focal_px)')
+
+
+@dataclass(frozen=True, slots=True)
+class TrackingConfig:
+    """Per-frame tracking quality, the tracking / degraded / lost state and re-localisation."""
+
+    enabled: bool = param(True, 'compute the quality and state; false: every frame counts '
+                          'as tracking (the map and predictions are never gated)')
+    ref_rate: float = param(0.05, 'rate of the running reference overlap o_ref (an '
+                            'exponential average of the overlap over tracking frames)',
+                            lo=0.001, hi=1.0)
+    overlap_floor: float = param(0.02, 'overlap at or below which the quality is 0 (the '
+                                 'overlap of a frame at a wrong pose)', lo=0.0, hi=1.0)
+    degrade: float = param(0.45, 'quality below which a tracking frame turns degraded',
+                           lo=0.0, hi=1.0)
+    recover: float = param(0.6, 'quality at or above which degraded frames count towards '
+                           'tracking again (hysteresis: > degrade)', lo=0.0, hi=1.0)
+    recover_frames: int = param(3, 'consecutive frames of quality >= recover that return a '
+                                'degraded (or re-localised) track to tracking', lo=1, hi=1000)
+    lose_frames: int = param(25, 'consecutive frames of quality < degrade that turn a degraded '
+                             'track lost', lo=1, hi=1000)
+    map_quality: float = param(0.45, 'frames of lower quality do not update the map', lo=0.0,
+                               hi=1.0)
+    relocalise: bool = param(True, 'while lost, search the map globally over roll and shift '
+                             'and restart the factors from the best candidates')
+    rolls: int = param(24, 'roll candidates of the global search (evenly over the full turn)',
+                       lo=1, hi=4096)
+    restarts: int = param(3, 'best search candidates (distinct rolls) restarted per search',
+                          lo=1, hi=64)
+    restart_iterations: int = param(4, 'resonator iterations of each restart on the frame',
+                                    lo=1, hi=100)
+    relock: float = param(0.6, 'quality a restart must reach to accept the re-localisation',
+                          lo=0.0, hi=1.0)
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if self.degrade > self.recover:
+            raise ConfigError(f'TrackingConfig: need degrade <= recover (hysteresis), got '
+                              f'{self.degrade} > {self.recover}')
+
+
+@dataclass(frozen=True, slots=True)
+class ResonatorConfig:
+    """Everything the HRN needs; nested sections map to nested YAML dictionaries."""
+
+    width: int = param(96, 'event frame width in pixels (packetizer output)', lo=2, hi=4096,
+                       read_only=True)
+    height: int = param(72, 'event frame height in pixels', lo=2, hi=4096, read_only=True)
+    path: str = param('fast', 'fast (FFT, DFT codebooks) or dense (reference matrices)',
+                      choices=('fast', 'dense'), read_only=True)
+    max_fill: float = param(0.3, 'frames with a larger fraction of pixels on are noise (a '
+                            'still camera fills fixed-count packets with noise) and are skipped '
+                            'like empty ones; 1 keeps all', lo=0.0, hi=1.0)
+    focal_px: float = param(0.0, 'focal length in frame pixels (fx / downsample), for the IMU '
+                            'prediction (pan/tilt -> h, v) and the sphere correction; 0: the '
+                            'caller derives it from the calibration', lo=0.0, hi=100_000.0,
+                            read_only=True)
+    codebook: CodebookConfig = nested(CodebookConfig, 'codebooks and canvas')
+    logpolar: LogPolarConfig = nested(LogPolarConfig, 'log-polar grid')
+    cleanup: CleanupConfig = nested(CleanupConfig, 'cleanup nonlinearity and update speed')
+    map: MapConfig = nested(MapConfig, 'map learning and anchoring')
+    readout: ReadoutConfig = nested(ReadoutConfig, 'population-vector readout')
+    scale: ScaleConfig = nested(ScaleConfig, 'optional scale factor z')
+    imu: ImuConfig = nested(ImuConfig, 'IMU prediction')
+    sphere: SphereConfig = nested(SphereConfig, 'sphere correction (rotating camera)')
+    tracking: TrackingConfig = nested(TrackingConfig, 'tracking quality, state and '
+                                      're-localisation')
+
+    def __post_init__(self) -> None:
+        validate(self)
+        if self.path == 'fast' and self.codebook.kind != 'dft':
+            raise ConfigError('ResonatorConfig: path fast needs codebook.kind dft; use path '
+                              'dense for random codebooks')
+        make_geometry(self.width, self.height, self.codebook.canvas_width,
+                      self.codebook.canvas_height, self.logpolar)
+
+
+def needs_focal(cfg: ResonatorConfig) -> bool:
+    """Whether a switched-on feature (IMU prediction, sphere correction) needs ``focal_px`` and
+    it is unset: callers with a calibration set it to fx / downsample."""
+    return (cfg.imu.enabled or cfg.sphere.enabled) and not cfg.focal_px
+
+
+def sphere_rectify_problem(rectify: str, cfg: ResonatorConfig) -> str | None:
+    """Why ``cfg``'s sphere correction cannot run on frames rectified with ``rectify`` (the
+    packetizer's mode; the warp assumes the equidistant projection), or None."""
+    if cfg.sphere.enabled and rectify != 'equidistant':
+        return (f'sphere.enabled needs equidistant-rectified frames (packetizer rectify is '
+                f'{rectify}): set packetizer.rectify=equidistant or sphere.enabled=false')
+    return None
+
+
+def without_unset_sphere(cfg: ResonatorConfig) -> tuple[ResonatorConfig, str | None]:
+    """``cfg`` with the sphere correction off, and why, if ``focal_px`` is unset (a caller
+    without a calibration, such as the resonator node, still runs); else ``(cfg, None)``."""
+    if not (cfg.sphere.enabled and not cfg.focal_px):
+        return cfg, None
+    return replace(cfg, sphere=replace(cfg.sphere, enabled=False)), (
+        'sphere.enabled needs focal_px (fx / downsample, in frame pixels; about 79.6 for a '
+        'DAVIS240C at 2.5) as a start parameter: running without the sphere correction')

@@ -1,0 +1,146 @@
+"""Tracking quality, the tracking / degraded / lost state and re-localisation of the HRN."""
+
+from __future__ import annotations
+
+from hrn_synth import event_frame, random_scene, trajectory
+import numpy as np
+import pytest
+
+from hrn_vo_ros.core.configbase import from_dict
+from hrn_vo_ros.core.hrn.config import ResonatorConfig, TrackingConfig
+from hrn_vo_ros.core.hrn.network import HRN
+from hrn_vo_ros.core.odometry.estimate import Estimate
+from hrn_vo_ros.core.spiking.backend import SpikingHRN
+from hrn_vo_ros.errors import ConfigError
+
+#: The shipped rotation configuration (config/shapes_rotation.yaml) without the sphere
+#: correction (the synthetic frames are rigid views).
+BASE = {'codebook': {'canvas_width': 128, 'canvas_height': 96, 'kernel_sigma': 0.7},
+        'logpolar': {'n_theta': 192, 'n_rho': 36, 'r_min': 4.0, 'ring_weight': 0.5},
+        'cleanup': {'beta': 6.0, 'gamma': 0.9, 'iterations_per_frame': 2,
+                    'predict_velocity': 1.0},
+        'map': {'mu1': 0.985, 'mu2': 0.0075}, 'readout': {'refine': True}}
+
+
+def make(over: dict | None = None, seed: int = 1) -> HRN:
+    cfg = dict(BASE)
+    cfg.update(over or {})
+    return HRN(from_dict(ResonatorConfig, cfg), rng=np.random.default_rng(seed))
+
+
+def run(hrn: HRN, scene: np.ndarray, poses: np.ndarray, rng: np.random.Generator,
+        t0: int = 0) -> list[Estimate]:
+    return [hrn.step(event_frame(scene, tuple(p), rng), (t0 + i) * 5_000_000)
+            for i, p in enumerate(poses)]
+
+
+def clean(n: int = 250) -> np.ndarray:
+    return trajectory(n, amp_xy=8.0, amp_roll=0.3, period=250.0)
+
+
+def test_clean_sequence_tracks_with_high_quality() -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    est = run(make(), scene, clean(), rng)
+    q = np.array([e.quality for e in est[1:]])
+    states = [e.state for e in est]
+    assert np.median(q) > 0.8, np.median(q)
+    assert states.count('tracking') >= 0.97 * len(states), states
+    assert 'lost' not in states
+    assert all(0.0 <= e.quality <= 1.0 for e in est)
+
+
+def test_tracking_off_reproduces_the_ungated_network() -> None:
+    """On a clean sequence the gate never fires, so the poses equal tracking.enabled=false."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    frames = [event_frame(scene, tuple(p), rng) for p in clean(150)]
+    on, off = make(), make({'tracking': {'enabled': False}})
+    a = [on.step(f, i) for i, f in enumerate(frames)]
+    b = [off.step(f, i) for i, f in enumerate(frames)]
+    assert all(e.state == 'tracking' for e in a)
+    assert [(e.h, e.v, e.r) for e in a] == [(e.h, e.v, e.r) for e in b]
+    assert all(e.quality == 1.0 and e.state == 'tracking' for e in b)
+
+
+@pytest.mark.parametrize('kind', ['other_scene', 'noise', 'jump'])
+def test_a_divergence_is_flagged_within_ten_frames(kind: str) -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    poses = clean(150)
+    hrn = make({'tracking': {'relocalise': False}})
+    est = run(hrn, scene, poses, rng)
+    assert est[-1].state == 'tracking'
+    last = poses[-1]
+    if kind == 'other_scene':
+        bad = [event_frame(random_scene(np.random.default_rng(9)), tuple(last), rng)
+               for _ in range(12)]
+    elif kind == 'noise':
+        bad = [(rng.random((72, 96)) < 0.08).astype(np.uint8) for _ in range(12)]
+    else:               # a sudden large jump: 25 px and 40 deg between two frames
+        p = last + np.array([25.0, -20.0, np.deg2rad(40.0), 0.0])
+        bad = [event_frame(scene, tuple(p), rng) for _ in range(12)]
+    out = [hrn.step(f, (200 + i) * 5_000_000) for i, f in enumerate(bad)]
+    states = [e.state for e in out]
+    assert any(s in ('degraded', 'lost') for s in states[:10]), states
+    assert min(e.quality for e in out[:10]) < TrackingConfig().degrade
+
+
+def test_the_estimate_never_spins_while_lost() -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make()
+    est = run(hrn, scene, clean(150), rng)
+    good = est[-1]
+    other = random_scene(np.random.default_rng(5))
+    out = [hrn.step(event_frame(other, (0.0, 0.0, 0.0, 0.0), rng), (200 + i) * 5_000_000)
+           for i in range(60)]
+    assert 'lost' in [e.state for e in out]
+    lost = [e for e in out if e.state == 'lost']
+    roll = np.array([e.r for e in lost])
+    assert np.ptp(roll) == 0.0 and abs(roll[0] - good.r) < np.deg2rad(10.0)
+    assert all(abs(e.h - good.h) < 5.0 and abs(e.v - good.v) < 5.0 for e in lost)
+    assert all(not e.map_updated for e in lost)
+
+
+@pytest.mark.parametrize('roll_deg', [35.0, -60.0])
+def test_relocalises_after_a_blackout_with_roll_motion(roll_deg: float) -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make()
+    poses = clean(150)
+    est = run(hrn, scene, poses, rng)
+    err0 = np.median([abs(e.r - p[2]) for e, p in zip(est[50:], poses[50:], strict=True)])
+    blank = np.zeros((72, 96), np.uint8)
+    for i in range(20):                                   # 100 ms without events
+        hrn.step(blank, (150 + i) * 5_000_000)
+    target = poses[-1] + np.array([4.0, -3.0, np.deg2rad(roll_deg), 0.0])
+    after = run(hrn, scene, np.repeat(target[None], 50, axis=0), rng, t0=170)
+    states = [e.state for e in after]
+    assert 'lost' in states or 'degraded' in states
+    assert any(abs(e.r - target[2]) < np.deg2rad(3.0) for e in after), \
+        [round(float(np.rad2deg(e.r)), 1) for e in after]
+    last = after[-1]
+    assert last.state == 'tracking', states
+    assert abs(last.r - target[2]) < max(3 * err0, np.deg2rad(1.5))
+    assert abs(last.h - target[0]) < 1.5 and abs(last.v - target[1]) < 1.5
+    assert hrn.relocalisations >= 1
+
+
+def test_spiking_backend_shares_the_quality_and_state() -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    cfg = from_dict(ResonatorConfig, {**BASE, 'width': 48, 'height': 36,
+                                      'logpolar': {'n_theta': 64, 'n_rho': 27}})
+    hrn = SpikingHRN(cfg, rng=np.random.default_rng(1))
+    est = [hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng, width=48, height=36), i)
+           for i in range(6)]
+    assert all(e.state == 'tracking' for e in est) and est[-1].quality > 0.5
+    noise = [(rng.random((36, 48)) < 0.1).astype(np.uint8) for _ in range(10)]
+    out = [hrn.step(f, 10 + i) for i, f in enumerate(noise)]
+    assert any(e.state != 'tracking' for e in out)
+
+
+def test_tracking_config_needs_ordered_thresholds() -> None:
+    with pytest.raises(ConfigError):
+        TrackingConfig(degrade=0.7, recover=0.6)
