@@ -82,10 +82,29 @@ def _no_daemon_left() -> Iterator[None]:
         ros2('daemon', 'stop', timeout=20)
 
 
-def param(node: str, name: str) -> str:
-    """``ros2 param get`` output ('' while the node is not up)."""
-    res = ros2('param', 'get', '--no-daemon', '--timeout', '5', node, name)
-    return res.stdout.strip() if res.returncode == 0 else ''
+def param(node: str, name: str, tries: int = 5) -> str:
+    """``ros2 param get`` output ('' while the node is not up).
+
+    Each ``--no-daemon`` call discovers the graph anew; on a loaded machine that can miss a
+    node that is up, so 'Node not found' is retried a few times before it counts.
+    """
+    for _ in range(tries):
+        res = ros2('param', 'get', '--no-daemon', '--timeout', '5', node, name)
+        if res.returncode == 0:
+            return res.stdout.strip()
+        time.sleep(0.5)
+    return ''
+
+
+def param_set(node: str, name: str, value: str, tries: int = 5) -> str:
+    """``ros2 param set`` output, retried like :func:`param` while discovery is incomplete."""
+    res = ros2('param', 'set', '--no-daemon', node, name, value)
+    for _ in range(tries - 1):
+        if 'Node not found' not in res.stderr:
+            break
+        time.sleep(0.5)
+        res = ros2('param', 'set', '--no-daemon', node, name, value)
+    return res.stdout + res.stderr
 
 
 def topics() -> set[str]:
@@ -135,8 +154,8 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
         wait_for('the frames link', lambda: counts('/packetizer_node/frames') == (1, 1))
         assert counts('/event_camera/events')[1] == 1
         # a runtime change is validated, applied (the resonator is rebuilt) and reported
-        res = ros2('param', 'set', '--no-daemon', '/resonator_node', 'cleanup.gamma', '0.5')
-        assert 'Set parameter successful' in res.stdout, res.stdout + res.stderr
+        out = param_set('/resonator_node', 'cleanup.gamma', '0.5')
+        assert 'Set parameter successful' in out, out
         assert param('/resonator_node', 'cleanup.gamma') == 'Double value is: 0.5'
         wait_for('the reconfiguration log line',
                  lambda: 'resonator reconfigured' in log.read_text(), timeout=20)
@@ -158,6 +177,6 @@ def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Pat
         wait_for('the namespaced frames link',
                  lambda: counts('/cam0/packetizer_node/frames') == (1, 1))
         assert counts('/cam0/event_camera/events')[1] == 1
-        names = topics()
-        assert '/cam0/resonator_node/pose' in names and '/packetizer_node/frames' not in names
+        wait_for('the namespaced pose topic', lambda: '/cam0/resonator_node/pose' in topics())
+        assert '/packetizer_node/frames' not in topics()
         assert proc.poll() is None, log.read_text()
