@@ -275,7 +275,8 @@ def _run_method(case: Case, seed: int, ds: Path, method: str,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark; returns 0 (figures are printed, not asserted)."""
+    """Run the benchmark; returns 0 (figures are printed, not asserted), 1 when every
+    evaluation failed."""
     p = _parser()
     args = p.parse_args(argv)
     try:
@@ -296,6 +297,9 @@ def main(argv: list[str] | None = None) -> int:
             for method, runner in _methods(case, args):
                 results.append(_run_method(case, seed, ds, method, runner, args, done))
     _table(results, args)
+    if results and all(not r[3].get('metrics') for r in results):
+        print('every evaluation failed (see the FAILED lines above)', file=sys.stderr)
+        return 1
     return 0
 
 

@@ -192,6 +192,8 @@ def main() -> int:
                        else load(seed, args.seconds, args.cache, pcfg))
         if args.frames:
             t, imgs = t[:args.frames], imgs[:args.frames]
+            if isinstance(gt, np.ndarray):    # synthetic truth: one row per frame
+                gt = gt[:args.frames]
         ef, dtf, _ = run(cfg, flt, t, imgs, seed)
         es, dts, _ = run(cfg, spk, t, imgs, seed)
         times_f.append(dtf)

@@ -40,7 +40,8 @@ ARGUMENTS = [
     ('use_imu', 'false', "fuse the gyro (sets the resonator's imu.enabled)"),
     ('focal_px', '0.0',
      'focal length in frame pixels, fx / downsample (about 79.6 for a DAVIS240C at 2.5), for '
-     "the IMU prediction and the sphere correction; 0 keeps the config's value"),
+     "the IMU prediction, the sphere correction and the odometry calibration "
+     "(odometry.focal_length_px); 0 keeps the config's values"),
     ('publish_tf', 'false', 'publish odom -> base_link on /tf'),
     ('use_sim_time', 'false',
      'run the nodes on the /clock topic (the bag player of bag:= then publishes it)'),
@@ -88,6 +89,7 @@ def _nodes(context, *args, **kwargs):
     focal = float(LaunchConfiguration('focal_px').perform(context))
     if focal > 0.0:
         resonator['focal_px'] = focal
+        resonator['odometry.focal_length_px'] = focal   # one focal length for every stage
     topic = {name: LaunchConfiguration(name).perform(context)
              for name in ('events_topic', 'camera_info_topic', 'imu_topic')}
     actions = [

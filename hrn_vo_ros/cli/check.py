@@ -33,13 +33,11 @@ def run(args: argparse.Namespace) -> int:
     for topic, n in sorted(res.counts.items()):
         echo(f'{topic}: {n} messages')
     if res.event_topic is not None:
-        stored = ('matches the stored checksum' if res.stored_checksum is not None
-                  else 'no stored checksum')
-        echo(f'{res.event_topic}: {res.events} events decoded, checksum {res.checksum}: '
-             f'{stored}')
-    if res.storage == 'mcap':
+        stored = (': matches the stored checksum' if res.stored_checksum is not None else '')
+        echo(f'{res.event_topic}: {res.events} events decoded, checksum {res.checksum}{stored}')
+    if res.storage == 'mcap' and res.chunks_crc_checked:
         echo(f'{res.chunks_crc_checked} MCAP chunk CRCs verified')
-    for note in res.notes:
+    for note in res.notes:     # e.g. no stored checksum, chunks without CRCs
         echo(f'note: {note}')
     echo(f'{res.path}: OK ({res.storage})')
     return 0

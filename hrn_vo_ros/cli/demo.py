@@ -1,15 +1,20 @@
 """``hrn-vo demo [DATASET]``: the whole pipeline through the real ROS 2 node graph, in one command.
 
 Without DATASET it simulates a sequence (``--kind``, ``--seconds``, ``--seed``) in the Event
-Camera Dataset layout; with one it uses that folder or zip. Then it converts the sequence to a
-ROS 2 bag, starts the real node processes (bag_recorder, resonator_node, packetizer_node, and the
-bag player replaying the bag), waits until every event frame came out as an estimate, stops the
-graph, and writes into ``--out``:
+Camera Dataset layout; with one it uses that folder or zip, or a ROS 2 bag (an EventPacket
+topic in any supported encoding and optionally an Imu topic, ``--events-topic`` and
+``--imu-topic``; the graph subscribes to its standard topics, so the bag's must be those). A
+dataset is converted to a ROS 2 bag. Then it starts the real node processes (bag_recorder,
+resonator_node, packetizer_node, and the bag player replaying the bag), waits until every
+event frame came out as an estimate, stops the graph, and writes into ``--out``:
 
 * ``graph_bag/`` — the recorded outputs (raw readouts, odometry, poses);
 * ``est.csv`` — the raw estimates from the graph (the columns of ``hrn-vo run``);
 * ``evaluation.txt`` and ``evaluation.json`` — the paper's evaluation against the ground truth;
-* ``trajectory.png`` — the calibrated trajectory against the ground truth;
+* ``trajectory.png`` — the calibrated trajectory against the ground truth (tracking states
+  shaded when the estimates carry them);
+
+A bag has no ground truth: the evaluation and the plot are skipped (and the demo says so).
 * ``logs/`` — one log per node process; ``input_bag/`` (and ``sequence/`` when simulated).
 """
 
@@ -22,7 +27,7 @@ import sys
 import time
 
 from hrn_vo_ros.cli.main import echo
-from hrn_vo_ros.errors import ConfigError, DatasetError
+from hrn_vo_ros.errors import ConfigError
 
 KIND_CONFIGS = {'rotation': 'shapes_rotation.yaml', 'translation': 'shapes_translation.yaml',
                 'arm': 'robot_arm.yaml'}
@@ -34,7 +39,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                        'graph, record, evaluate, plot', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('dataset', type=Path, nargs='?', default=None,
-                   help='Event Camera Dataset folder or zip (default: simulate one)')
+                   help='Event Camera Dataset folder or zip, or a ROS 2 bag (default: simulate '
+                        'one)')
+    p.add_argument('--events-topic', default=None,
+                   help='bag input: the EventPacket topic (default: the only one)')
+    p.add_argument('--imu-topic', default=None,
+                   help='bag input: the Imu topic to fuse (default: none)')
     p.add_argument('--config', type=Path, default=None,
                    help='parameter file (default: config/<kind>.yaml of the package)')
     p.add_argument('--imu', action='store_true', help='fuse the gyro (imu.enabled)')
@@ -70,22 +80,57 @@ def run(args: argparse.Namespace) -> int:
     if not config.is_file():
         raise ConfigError(f'parameter file {config} not found: pass --config FILE')
     t_start = time.monotonic()
-    dataset = args.dataset if args.dataset is not None else simulate(args, out / 'sequence')
-    bag = convert(dataset, out / 'input_bag')
+    from hrn_vo_ros.io.pipeline import is_bag
+
+    bag_input = args.dataset is not None and is_bag(args.dataset)
+    imu = args.imu
+    if bag_input:
+        bag = check_bag(args)
+        imu = args.imu_topic is not None
+        dataset = None
+    else:
+        dataset = args.dataset if args.dataset is not None else simulate(args, out / 'sequence')
+        bag = convert(dataset, out / 'input_bag')
     echo(f'[demo] replaying {bag} through the node graph (logs in {out / "logs"})')
     result = run_graph(bag, out / 'graph_bag', out / 'logs', params_file=config,
-                       dataset=dataset, imu=args.imu, rate=args.rate, timeout=args.timeout)
+                       dataset=dataset, imu=imu, rate=args.rate, timeout=args.timeout)
     echo(f'[demo] {result.packets_in}/{result.packets} event packets received, '
          f'{result.frames} frames made, {result.estimates} estimates recorded (none lost), '
          f'graph ran {result.seconds:.1f} s')
     est_csv = write_est_csv(out / 'graph_bag', out / 'est.csv')
-    table = evaluate(dataset, est_csv, args.kind, out)
-    echo(table)
+    names = ['graph_bag', 'est.csv', 'logs']
+    if dataset is None:
+        echo('[demo] the bag has no ground truth: evaluation and plot skipped')
+    else:
+        echo(evaluate(dataset, est_csv, args.kind, out))
+        names[2:2] = ['evaluation.txt', 'evaluation.json', 'trajectory.png']
     echo(f'[demo] done in {time.monotonic() - t_start:.0f} s. Files in {out}:')
-    for name in ('graph_bag', 'est.csv', 'evaluation.txt', 'evaluation.json', 'trajectory.png',
-                 'logs'):
+    for name in names:
         echo(f'  {out / name}')
     return 0
+
+
+def check_bag(args: argparse.Namespace) -> Path:
+    """The bag input, checked against the topics the node graph subscribes to.
+
+    Raises:
+        ConfigError: when the events or Imu topic is not the graph's.
+    """
+    from hrn_vo_ros.io.convert import EVENTS_TOPIC, IMU_TOPIC
+    from hrn_vo_ros.io.pipeline import inspect_bag
+
+    bag: Path = args.dataset
+    info = inspect_bag(bag, args.events_topic)
+    if info.events_topic != EVENTS_TOPIC:
+        raise ConfigError(f'{bag}: the node graph subscribes to {EVENTS_TOPIC}, the events are '
+                          f'on {info.events_topic}: run `hrn-vo run {bag} --events-topic '
+                          f'{info.events_topic}` instead')
+    if args.imu_topic is not None and args.imu_topic != IMU_TOPIC:
+        raise ConfigError(f'{bag}: the node graph subscribes to {IMU_TOPIC} for the gyro, not '
+                          f'{args.imu_topic}')
+    echo(f'[demo] {bag}: {info.events_topic} ({info.encoding}, {info.sensor_size[0]}x'
+         f'{info.sensor_size[1]}, {info.messages} messages)')
+    return bag
 
 
 def simulate(args: argparse.Namespace, folder: Path) -> Path:
@@ -115,29 +160,34 @@ def convert(dataset: Path, dst: Path) -> Path:
 
 def write_est_csv(bag: Path, dst: Path) -> Path:
     """The recorded raw readouts as an estimate CSV (``hrn-vo run`` columns)."""
-    from hrn_vo_ros.core.evaluation.series import EstimateSeries
     from hrn_vo_ros.io.estimates import write_estimates
-    from hrn_vo_ros.io.recording import read_readouts
+    from hrn_vo_ros.io.recording import read_readout_estimates
     from hrn_vo_ros.nodes.graph import READOUT_TOPIC
 
-    t, vals = read_readouts(bag, READOUT_TOPIC)
-    if len(t) == 0:
-        raise DatasetError(f'{bag} holds no estimates on {READOUT_TOPIC}')
-    est = EstimateSeries(t=t, h=vals['h'], v=vals['v'], r=vals['r'], z=vals.get('z'))
-    return write_estimates(dst, est)
+    ef = read_readout_estimates(bag, READOUT_TOPIC)
+    return write_estimates(dst, ef.series, quality=ef.quality, state=ef.state)
 
 
 def evaluate(dataset: Path, est_csv: Path, kind: str, out: Path) -> str:
     """Evaluate, write the table, JSON and plot; returns the table."""
-    from hrn_vo_ros.cli.evaluate import format_table
+    from hrn_vo_ros.cli.evaluate import format_states, format_table, sample_states, state_summary
     from hrn_vo_ros.core.evaluation.protocol import evaluate as ev
     from hrn_vo_ros.io.ecd import read_groundtruth
-    from hrn_vo_ros.io.estimates import read_estimates
+    from hrn_vo_ros.io.estimates import read_estimate_file
     from hrn_vo_ros.io.plots import plot_evaluation
 
-    res = ev(read_groundtruth(dataset), read_estimates(est_csv), kind)
+    gt = read_groundtruth(dataset)
+    ef = read_estimate_file(est_csv)
+    res = ev(gt, ef.series, kind)
     table = format_table(res)
+    states = None
+    if ef.state is not None:
+        t0 = int(gt.t[0])
+        table += '\ntime per state:\n' + format_states(
+            state_summary(res, ef.series.t, ef.state, t0), res.series.err_label)
+        states = sample_states(res, ef.series.t, ef.state, t0)
     (out / 'evaluation.txt').write_text(table + '\n')
     (out / 'evaluation.json').write_text(json.dumps(res.to_dict()) + '\n')
-    plot_evaluation(res, out / 'trajectory.png', title=f'hrn-vo demo: {dataset.name}')
+    plot_evaluation(res, out / 'trajectory.png', title=f'hrn-vo demo: {dataset.name}',
+                    states=states)
     return table

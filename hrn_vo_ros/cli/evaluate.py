@@ -11,7 +11,10 @@ headline error is lowest (the JSON gets a ``lag_scan`` entry); ``--roll-zero S``
 diagnostic) zeroes the roll on the first S seconds of estimates instead of the protocol's
 0.1 s. ``--convention`` chooses how pan, tilt and roll make a rotation (default
 ``swing-twist``, what an image shift and an image rotation measure; ``euler``:
-``Ry(pan) Rx(tilt) Rz(roll)``).
+``Ry(pan) Rx(tilt) Rz(roll)``). When the CSV has a ``state`` column (``hrn-vo run``
+writes one), the table also gives the time spent in each tracking state (a frame counts until
+the next frame) and the median error of the evaluated samples per state (the JSON gets a
+``states`` entry), and the plot shades the states.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from hrn_vo_ros.core.evaluation.protocol import (
 )
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import read_groundtruth
-from hrn_vo_ros.io.estimates import read_estimates
+from hrn_vo_ros.io.estimates import read_estimate_file, STATES
 
 TARGETS = {'rotation': ('median_angle_deg', 'deg'), 'translation': ('median_pos_m', 'm'),
            'arm': ('median_pos_m', 'm')}
@@ -61,7 +64,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help='zero the roll on the estimates of the first S seconds (default 0.1: '
                         'the protocol; longer only as a diagnostic of how much the headline '
                         'depends on the first few event packets)')
-    p.add_argument('--plot', type=Path, default=None, help='write a trajectory plot (PNG)')
+    p.add_argument('--plot', type=Path, default=None, metavar='FILE',
+                   help='write a trajectory plot (PNG; the format follows the suffix); an '
+                        'existing folder gets trajectory.png inside it (the path is printed)')
     p.add_argument('--json', action='store_true', help='print only the JSON line')
     p.set_defaults(func=run)
 
@@ -81,15 +86,64 @@ def format_table(res: EvalResult) -> str:
     return '\n'.join(f'{k:<{width}}  {v}' for k, v in rows)
 
 
+def sample_states(res: EvalResult, t_est_ns: np.ndarray, state: list[str],
+                  t0_ns: int) -> list[str]:
+    """The state of the estimate row behind every evaluated sample of ``res.series`` (its
+    times are seconds from the first ground-truth pose ``t0_ns``; estimates were shifted by
+    ``-lag``): the row at or before the sample time."""
+    t_s = res.series.t_s
+    t_ns = t0_ns + np.round((t_s + res.lag_s) * 1e9).astype(np.int64)
+    idx = np.clip(np.searchsorted(t_est_ns, t_ns, side='right') - 1, 0, len(state) - 1)
+    return [state[i] for i in idx]
+
+
+def state_summary(res: EvalResult, t_est_ns: np.ndarray, state: list[str],
+                  t0_ns: int) -> dict[str, dict[str, float | None]]:
+    """Per state: seconds spent in it (each frame until the next one) and the median error of
+    the evaluated samples in it (None when none, ``null`` in the JSON line, which stays
+    strict JSON)."""
+    t = np.asarray(t_est_ns, dtype=np.int64)
+    dt = np.diff(t, append=t[-1]) / 1e9 if t.size else np.zeros(0)
+    per = sample_states(res, t, state, t0_ns) if t.size else []
+    err = res.series.err
+    test = res.series.test
+    out: dict[str, dict[str, float | None]] = {}
+    for name in STATES:
+        mask = np.array([s == name for s in per], dtype=bool)
+        sel = err[mask & test] if mask.size else np.zeros(0)
+        out[name] = {'seconds': float(sum(d for d, s in zip(dt, state, strict=True)
+                                          if s == name)),
+                     'median_error': float(np.median(sel)) if sel.size else None,
+                     'evaluated': int(sel.size)}
+    return out
+
+
+def format_states(summary: dict[str, dict[str, float | None]], err_label: str) -> str:
+    """The per-state lines of the table."""
+    lines = []
+    for name, v in summary.items():
+        med = v['median_error']
+        error = (f'median error {med:.4g} {err_label} over {int(v["evaluated"] or 0)} evaluated '
+                 'samples' if med is not None else 'no evaluated samples')
+        lines.append(f'{name:<9} {v["seconds"] or 0.0:8.2f} s, {error}')
+    return '\n'.join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     """Evaluate, print, optionally plot."""
     gt = read_groundtruth(args.dataset)
-    est = read_estimates(args.estimate)
+    ef = read_estimate_file(args.estimate)
+    est = ef.series
     if not 0 <= args.lag_scan <= 500:
         raise ConfigError(f'--lag-scan {args.lag_scan}: give 0 (off) to 500 ms')
     res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag,
                    convention=args.convention, roll_zero_s=args.roll_zero)
     out = res.to_dict()
+    states_text = ''
+    if ef.state is not None:
+        summary = state_summary(res, est.t, ef.state, int(gt.t[0]))
+        out['states'] = summary
+        states_text = 'time per state:\n' + format_states(summary, res.series.err_label)
     scan_text = ''
     if args.lag_scan:
         offsets_ms = np.arange(-args.lag_scan, args.lag_scan + 1)
@@ -104,14 +158,20 @@ def run(args: argparse.Namespace) -> int:
                            'best_offset_ms': int(offsets_ms[best])}
         scan_text = (f'lag scan ({metric}): {values[args.lag_scan]:.4g} at the protocol lag, '
                      f'lowest {values[best]:.4g} at {int(offsets_ms[best]):+d} ms from it')
+    plot = None
     if args.plot is not None:
         from hrn_vo_ros.io.plots import plot_evaluation
-        plot_evaluation(res, args.plot, title=f'{args.estimate.name} on {args.dataset.name}')
+        plot = plot_evaluation(res, args.plot,
+                               title=f'{args.estimate.name} on {args.dataset.name}',
+                               states=(sample_states(res, est.t, ef.state, int(gt.t[0]))
+                                       if ef.state is not None else None))
     if not args.json:
         echo(format_table(res))
+        if states_text:
+            echo(states_text)
         if scan_text:
             echo(scan_text)
-        if args.plot is not None:
-            echo(f'plot: {args.plot}')
+        if plot is not None:
+            echo(f'plot: {plot}')
     echo(json.dumps(out))
     return 0

@@ -10,18 +10,75 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
+from pathlib import Path
 import sys
 
-from hrn_vo_ros.errors import exit_code_for, HrnVoError
+from hrn_vo_ros.errors import ConfigError, exit_code_for, HrnVoError
 
 # Subcommand modules, in the order `hrn-vo --help` lists them. A module missing from an
 # installation (optional backends) is skipped.
-SUBCOMMANDS = ('simulate', 'run', 'evaluate', 'convert', 'play', 'demo', 'check')
+SUBCOMMANDS = ('simulate', 'run', 'evaluate', 'convert', 'play', 'demo', 'check', 'recover')
+
+# What each subcommand writes (argument dests): the folder of every output must exist, a
+# ``file`` output must not be an existing folder (a ``plot`` may be one: it writes into it);
+# ``new`` outputs (folders or bags the command
+# creates) are refused by the command when they exist. Checked before the command runs
+# (:func:`check_outputs`).
+OUTPUTS: dict[str, tuple[tuple[str, str], ...]] = {
+    'simulate': (('out', 'new'),),
+    'run': (('out', 'file'), ('tum', 'file')),
+    'evaluate': (('plot', 'plot'),),
+    'convert': (('dst', 'new'),),
+}
 
 
 def echo(*parts: object, err: bool = False) -> None:
     """The one place CLIs print (stdout, or stderr with ``err``)."""
     print(*parts, file=sys.stderr if err else sys.stdout, flush=True)
+
+
+def finite_float(text: str) -> float:
+    """A finite float (argparse type): NaN and infinities are refused at parse time."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'{text!r}: expected a finite number')
+    return value
+
+
+def _finite_floats(parser: argparse.ArgumentParser) -> None:
+    """Every ``type=float`` option of ``parser`` and its subparsers becomes :func:`finite_float`
+    (no option of the tool means anything by NaN or infinity)."""
+    for action in parser._actions:
+        if action.type is float:
+            action.type = finite_float
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _finite_floats(sub)
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, an output whose folder is missing or a file output that is an
+    existing folder (:data:`OUTPUTS`).
+
+    Raises:
+        ConfigError: naming the option and the path.
+    """
+    for dest, kind in OUTPUTS.get(str(getattr(args, 'command', '')), ()):
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        path = Path(value)
+        name = f'--{dest}' if dest not in ('out', 'dst') or kind == 'file' else dest.upper()
+        parent = path.parent if str(path.parent) else Path('.')
+        if not parent.is_dir():
+            raise ConfigError(f'{name} {path}: the folder {parent} does not exist (create it '
+                              'first)')
+        if kind == 'file' and path.is_dir():
+            raise ConfigError(f'{name} {path} is a folder; give a file name in it')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,6 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         module.register(sub)
+    _finite_floats(parser)
     return parser
 
 
@@ -47,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_outputs(args)
         return int(args.func(args))
     except HrnVoError as err:
         echo(f'hrn-vo {args.command}: error: {err}', err=True)

@@ -11,7 +11,9 @@ Per frame: the gyro prediction since the previous frame
 and the IMU is used), then ``estimator.step(image, t_ns, gyro_delta=...)``; the estimator is
 any object with that step (a resonator backend, float or spiking, or the classical baseline of
 :mod:`hrn_vo_ros.core.evaluation.baseline`). With ``record`` the readouts are collected into an
-:class:`~hrn_vo_ros.core.evaluation.protocol.EstimateSeries` (:meth:`OdometryPipeline.series`).
+:class:`~hrn_vo_ros.core.evaluation.protocol.EstimateSeries` (:meth:`OdometryPipeline.series`),
+with the tracking quality and state of every frame alongside (:meth:`OdometryPipeline.quality`,
+:meth:`OdometryPipeline.states`).
 """
 
 from __future__ import annotations
@@ -66,6 +68,8 @@ class OdometryPipeline(Generic[E]):
         self._v: list[float] = []
         self._r: list[float] = []
         self._z: list[float] = []
+        self._quality: list[float] = []
+        self._state: list[str] = []
 
     @property
     def frames(self) -> int:
@@ -89,6 +93,8 @@ class OdometryPipeline(Generic[E]):
             self._v.append(est.v)
             self._r.append(est.r)
             self._z.append(est.z)
+            self._quality.append(float(getattr(est, 'quality', 1.0)))
+            self._state.append(str(getattr(est, 'state', 'tracking')))
         return est
 
     def push(self, events: EventArray) -> list[Estimate]:
@@ -110,3 +116,24 @@ class OdometryPipeline(Generic[E]):
                               v=np.array(self._v, dtype=np.float64),
                               r=np.array(self._r, dtype=np.float64),
                               z=np.array(self._z, dtype=np.float64) if self.with_z else None)
+
+    def quality(self) -> NDArray[np.float64]:
+        """The recorded tracking quality per frame (1 for estimators that do not rate it)."""
+        return np.array(self._quality, dtype=np.float64)
+
+    def states(self) -> list[str]:
+        """The recorded tracking state per frame (``tracking``, ``degraded`` or ``lost``;
+        ``tracking`` for estimators that do not report one)."""
+        return list(self._state)
+
+    def retime(self, t_ns: NDArray[np.int64]) -> None:
+        """Replace the recorded frame times (one per frame, increasing), e.g. to move them
+        to another clock once the whole input is known.
+
+        Raises:
+            ConfigError: if the count differs from :attr:`frames` or the times do not increase.
+        """
+        t = np.asarray(t_ns, dtype=np.int64)
+        if t.shape != (len(self._t),) or (t.size > 1 and np.any(np.diff(t) <= 0)):
+            raise ConfigError(f'retime: need {len(self._t)} increasing times, got {t.size}')
+        self._t = [int(x) for x in t]

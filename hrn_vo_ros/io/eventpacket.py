@@ -63,6 +63,12 @@ class PacketDecoder:
         self._evt3 = Evt3Decoder(width=width, height=height)
         self._cmp = LibcaerCmpDecoder(width=width, height=height)
 
+    def reset(self) -> None:
+        """Forget the stream state (evt3 time and addresses, libcaer_cmp addresses): the next
+        packet starts a new stream, as after a camera restart or a looped bag."""
+        self._evt3.reset()
+        self._cmp.x = self._cmp.base_y = self._cmp.polarity = 0
+
     @property
     def dropped(self) -> int:
         """Events dropped so far for lying outside the sensor."""

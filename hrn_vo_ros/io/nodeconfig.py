@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hrn_vo_ros.core.clock import ClockConfig
 from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.odometry.odometry import OdometryConfig
 from hrn_vo_ros.errors import ConfigError
@@ -36,6 +37,15 @@ class PacketizerNodeConfig:
                                         lo=0.01, hi=3600.0, read_only=True)
     log_throttle_s: float = param(5.0, 'Minimum time between two warnings of one kind, seconds',
                                   lo=0.0, hi=3600.0)
+    sensor_size: str = param('config', 'Sensor size: config (sensor_width/sensor_height; a '
+                             'message of another size warns) or messages (EventPacket '
+                             'width/height of the first packet)', choices=('config', 'messages'),
+                             read_only=True)
+    diagnostics_window_s: float = param(10.0, 'Diagnostics WARN while a message was rejected '
+                                        'within this many seconds (wall time)', lo=0.0,
+                                        hi=1e6)
+    clock: ClockConfig = nested(ClockConfig, 'Sensor time to the header clock of the event '
+                                'packets (output stamps, resets)')
 
     def __post_init__(self) -> None:
         validate(self)
@@ -77,6 +87,23 @@ class ResonatorNodeConfig:
                                         lo=0.01, hi=3600.0, read_only=True)
     log_throttle_s: float = param(5.0, 'Minimum time between two warnings of one kind, seconds',
                                   lo=0.0, hi=3600.0)
+    imu_frame_id: str = param('', 'frame_id the IMU messages must carry (REP-145: data in the '
+                              "IMU's own frame, rotated to the camera by imu.camera_from_imu; "
+                              'empty: not checked, no transform)')
+    publish_static_tf: bool = param(True, 'Publish base_frame_id -> camera_frame_id (from '
+                                    'odometry.mount_*) and camera -> imu_frame_id on /tf_static',
+                                    read_only=True)
+    clock_tolerance_s: float = param(0.01, 'Frame or IMU stamps going back by more than this '
+                                     'restart their time state (counted), seconds', lo=0.0,
+                                     hi=1e6)
+    lost_variance: float = param(1e6, 'Pose and twist variance while tracking is lost '
+                                 '(a filter then effectively ignores the measurement)',
+                                 lo=0.0, hi=1e18)
+    min_quality: float = param(0.05, 'Quality floor: the covariance is divided by '
+                               'max(quality, min_quality)^2', lo=1e-6, hi=1.0)
+    diagnostics_window_s: float = param(10.0, 'Diagnostics WARN while a message was rejected '
+                                        'within this many seconds (wall time)', lo=0.0,
+                                        hi=1e6)
     odometry: OdometryConfig = nested(OdometryConfig, 'Calibration to metres/radians and '
                                       'the covariance model')
 

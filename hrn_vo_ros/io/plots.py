@@ -2,13 +2,15 @@
 
 Public API:
 
-* :func:`plot_evaluation(result, out, *, title=None) <plot_evaluation>` — one PNG: the three
-  evaluated quantities over time (ground truth, estimate, calibration segment and evaluated part
-  shaded), the per-sample error, and a top view (pan/tilt or x/y plane).
+* :func:`plot_evaluation(result, out, *, title=None, states=None) <plot_evaluation>` — one PNG:
+  the three evaluated quantities over time (ground truth, estimate, calibration segment and
+  evaluated part shaded), the per-sample error (with the tracking states, when given, shaded:
+  degraded yellow, lost red), and a top view (pan/tilt or x/y plane).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -16,15 +18,18 @@ import matplotlib
 matplotlib.use('Agg')
 
 from matplotlib.axes import Axes
+from matplotlib.backend_bases import FigureCanvasBase
 import matplotlib.pyplot as plt
 import numpy as np
 
 from hrn_vo_ros.core.evaluation.series import EvalResult
+from hrn_vo_ros.errors import ConfigError
 
 _GT = '#d95f02'
 _EST = '#1b6ac9'
 _CAL = '#9ecae1'
 _TEST = '#e5e5e5'
+_STATE_COLORS = {'degraded': '#fee391', 'lost': '#fb6a4a'}
 
 
 def _spans(ax: Axes, t: np.ndarray, mask: np.ndarray, color: str, label: str | None) -> None:
@@ -40,19 +45,44 @@ def _spans(ax: Axes, t: np.ndarray, mask: np.ndarray, color: str, label: str | N
                    zorder=0)
 
 
-def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = None) -> Path:
+DEFAULT_NAME = 'trajectory.png'
+"""The file name :func:`plot_evaluation` writes into a folder given as its output."""
+
+_FORMATS = frozenset(FigureCanvasBase.get_supported_filetypes())
+
+
+def plot_path(out: Path | str) -> Path:
+    """Where :func:`plot_evaluation` writes for ``out``: ``out / DEFAULT_NAME`` when ``out`` is
+    an existing folder, else ``out`` itself."""
+    out = Path(out)
+    return out / DEFAULT_NAME if out.is_dir() else out
+
+
+def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = None,
+                    states: Sequence[str] | None = None) -> Path:
     """Write a PNG of the calibrated estimate against the ground truth.
 
     Args:
         result: An :class:`~hrn_vo_ros.core.evaluation.protocol.EvalResult`.
-        out: PNG path (parent folders are created).
+        out: Image path (parent folders are created), written exactly there: the format
+            follows the suffix (PNG without one); an existing folder gets
+            :data:`DEFAULT_NAME` inside it.
         title: Figure title (default: kind and headline metrics).
+        states: The tracking state of every sample of ``result.series`` (``tracking``,
+            ``degraded``, ``lost``), shaded on the error panel; None: not shown.
 
     Returns:
         The written path.
+
+    Raises:
+        ConfigError: for a suffix that is no image format matplotlib writes.
     """
     s = result.series
-    out = Path(out)
+    out = plot_path(out)
+    fmt = out.suffix[1:].lower() or 'png'
+    if fmt not in _FORMATS:
+        raise ConfigError(f'{out}: {out.suffix} is no image format matplotlib writes; use '
+                          f'one of {", ".join("." + f for f in sorted(_FORMATS))}')
     out.parent.mkdir(parents=True, exist_ok=True)
     fig = plt.figure(figsize=(13, 8.5), dpi=110)
     gs = fig.add_gridspec(4, 2, width_ratios=(2.3, 1), hspace=0.12, wspace=0.18)
@@ -72,6 +102,10 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
     ax = axes[3]
     _spans(ax, s.t_s, s.calib, _CAL, None)
     _spans(ax, s.t_s, s.test & ~s.calib, _TEST, None)
+    if states is not None and len(states) == len(s.t_s):
+        st = np.asarray(list(states))
+        for name, color in _STATE_COLORS.items():
+            _spans(ax, s.t_s, st == name, color, name)
     ax.plot(s.t_s, s.err, color='#444444', lw=0.8)
     med = float(np.median(s.err[s.test])) if np.any(s.test) else float('nan')
     ax.axhline(med, color='#c51b7d', lw=1, ls='--', label=f'median (evaluated) {med:.3g}')
@@ -106,6 +140,6 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
         head = next(iter(result.metrics.items()), ('', float('nan')))
         title = f'{result.kind}: {head[0]} = {head[1]:.3g}'
     fig.suptitle(title, fontsize=12)
-    fig.savefig(out, bbox_inches='tight')
+    fig.savefig(out, bbox_inches='tight', format=fmt)
     plt.close(fig)
     return out

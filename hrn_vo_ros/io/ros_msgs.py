@@ -3,11 +3,15 @@
 Topics and types of the node graph:
 
 * frames: ``sensor_msgs/Image``, ``mono8``, one byte per pixel, 0 or 255, ``header.stamp`` =
-  the frame (packet midpoint) time on the **sensor clock**.
+  the frame (packet midpoint) time in the **header clock** of the event packets (ROS time for a
+  live driver; see ``core/clock.py``).
 * raw readouts (``~/readout``): ``sensor_msgs/JointState`` — a standard, stamped, labelled
   vector that rqt_plot/PlotJuggler understand. ``name = ['h', 'v', 'r'(, 'z')]``, ``position`` =
   the readout values (h, v in downsampled pixels, r in radians, z log scale), ``effort`` = the
   per-factor readout confidence (0..1), ``velocity`` empty; ``header.stamp`` = frame time.
+  The resonator node appends two more names: ``quality`` (tracking quality, 0..1) and ``state``
+  (tracking state code: 0 tracking, 1 degraded, 2 lost, the index in :data:`READOUT_STATES`),
+  their ``effort`` NaN.
 * ``~/camera_info`` of the packetizer: ``sensor_msgs/CameraInfo`` (``plumb_bob``, or no model
   with no coefficients) → :class:`~hrn_vo_ros.core.events.sequence.CameraCalibration`.
 * ``~/pose`` (PoseStamped), ``~/odom`` (Odometry), ``/tf`` (TFMessage) from an
@@ -35,8 +39,9 @@ from tf2_msgs.msg import TFMessage
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.sequence import CameraCalibration
-from hrn_vo_ros.core.odometry.odometry import OdomPose
+from hrn_vo_ros.core.odometry.odometry import OdomPose, quat_from_matrix, Twist
 from hrn_vo_ros.errors import DecodeError
+from hrn_vo_ros.io.estimates import STATES as READOUT_STATES
 from hrn_vo_ros.io.eventpacket import PacketDecoder
 
 LEVELS = {'ok': DiagnosticStatus.OK, 'warn': DiagnosticStatus.WARN,
@@ -157,7 +162,8 @@ def float_image_to_mono8(image: NDArray[np.floating[Any]], t_ns: int, frame_id: 
 
 
 def imu_to_arrays(msg: Any) -> tuple[int, NDArray[np.float64], NDArray[np.float64]]:
-    """``(t_ns, gyro, acc)`` of a ``sensor_msgs/Imu`` (stamp = sensor time).
+    """``(t_ns, gyro, acc)`` of a ``sensor_msgs/Imu`` (``t_ns`` = its header stamp, the header
+    clock the frames are mapped to: ROS time for a live driver).
 
     Shapes:
         gyro: (3,) rad/s; acc: (3,) m/s^2.
@@ -185,10 +191,11 @@ def pose_to_pose_stamped(pose: OdomPose, frame_id: str) -> PoseStamped:
 
 
 def pose_to_odometry(pose: OdomPose, frame_id: str, child_frame_id: str,
-                     twist_variance: float) -> Odometry:
-    """``nav_msgs/Odometry`` with the pose covariance; the twist is not estimated.
+                     twist_variance: float, twist: Twist | None = None) -> Odometry:
+    """``nav_msgs/Odometry`` with the pose covariance and the twist (in the child frame).
 
-    The twist is zero with ``twist_variance`` on its diagonal (unknown, not "exactly zero").
+    Without ``twist`` it is zero with ``twist_variance`` on its diagonal (unknown, not
+    "exactly zero").
     """
     msg = Odometry()
     msg.header.stamp = ns_to_stamp(pose.t_ns)
@@ -198,8 +205,32 @@ def pose_to_odometry(pose: OdomPose, frame_id: str, child_frame_id: str,
     p.x, p.y, p.z = (float(c) for c in pose.position)
     q.x, q.y, q.z, q.w = (float(c) for c in pose.quat)
     msg.pose.covariance = np.ascontiguousarray(pose.covariance, np.float64).reshape(36)
-    msg.twist.covariance = (np.eye(6) * twist_variance).reshape(36)
+    if twist is None:
+        msg.twist.covariance = (np.eye(6) * twist_variance).reshape(36)
+        return msg
+    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    lin.x, lin.y, lin.z = (float(c) for c in twist.linear)
+    ang.x, ang.y, ang.z = (float(c) for c in twist.angular)
+    msg.twist.covariance = np.ascontiguousarray(twist.covariance, np.float64).reshape(36)
     return msg
+
+
+def static_transform(t_ns: int, frame_id: str, child_frame_id: str,
+                     rotation: NDArray[np.float64],
+                     translation: NDArray[np.float64]) -> TransformStamped:
+    """A ``geometry_msgs/TransformStamped`` ``frame_id`` → ``child_frame_id`` (for /tf_static).
+
+    Shapes:
+        rotation: (3, 3), the child's axes in the parent; translation: (3,) metres.
+    """
+    tf = TransformStamped()
+    tf.header.stamp = ns_to_stamp(t_ns)
+    tf.header.frame_id = frame_id
+    tf.child_frame_id = child_frame_id
+    t, q = tf.transform.translation, tf.transform.rotation
+    t.x, t.y, t.z = (float(c) for c in translation)
+    q.x, q.y, q.z, q.w = (float(c) for c in quat_from_matrix(np.asarray(rotation, np.float64)))
+    return tf
 
 
 def pose_to_tf(pose: OdomPose, frame_id: str, child_frame_id: str) -> TFMessage:
@@ -215,14 +246,40 @@ def pose_to_tf(pose: OdomPose, frame_id: str, child_frame_id: str) -> TFMessage:
 
 
 def readout_to_joint_state(t_ns: int, values: Mapping[str, float],
-                           confidence: Mapping[str, float]) -> JointState:
-    """The raw readout topic message (see the module docstring)."""
+                           confidence: Mapping[str, float], *, quality: float | None = None,
+                           state: str | None = None) -> JointState:
+    """The raw readout topic message (see the module docstring).
+
+    Args:
+        t_ns: Frame time (the header stamp).
+        values: Readout values by factor name (h, v, r [, z]).
+        confidence: Per-factor confidence (NaN where missing).
+        quality: Tracking quality in [0, 1], appended as the name ``quality``, or None.
+        state: Tracking state (:data:`READOUT_STATES`), appended as the name ``state`` with its
+            code (the index), or None.
+
+    Raises:
+        DecodeError: for a state outside :data:`READOUT_STATES`.
+    """
     msg = JointState()
     msg.header.stamp = ns_to_stamp(t_ns)
     names = list(values)
+    position = [float(values[k]) for k in names]
+    effort = [float(confidence.get(k, math.nan)) for k in names]
+    if quality is not None:
+        names.append('quality')
+        position.append(float(quality))
+        effort.append(math.nan)
+    if state is not None:
+        if state not in READOUT_STATES:
+            raise DecodeError(f'tracking state {state!r} is not one of '
+                              f'{", ".join(READOUT_STATES)}')
+        names.append('state')
+        position.append(float(READOUT_STATES.index(state)))
+        effort.append(math.nan)
     msg.name = names
-    msg.position = [float(values[k]) for k in names]
-    msg.effort = [float(confidence.get(k, math.nan)) for k in names]
+    msg.position = position
+    msg.effort = effort
     return msg
 
 

@@ -3,7 +3,10 @@
 Each topic of the ``topics`` parameter (``TOPIC:pkg/msg/Type``) is subscribed RELIABLE with
 ``raw=True``; callbacks only queue the bytes (bag time = receive time), a writer thread writes
 them (io/recording.py). The bag appears at ``output`` when the node shuts down cleanly (Ctrl-C,
-SIGTERM). ``/diagnostics`` reports the messages recorded per topic.
+SIGTERM). Killed (SIGKILL, a crash), it leaves ``output.partial``: the writer closes its MCAP
+chunk and flushes the file at least once a second, and ``hrn-vo recover output.partial``
+rewrites every complete chunk as the bag ``output``. ``/diagnostics`` reports the messages
+recorded per topic.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+import contextlib
+import signal
 import time
 from typing import Any
 
@@ -47,27 +49,93 @@ class Rejects:
                        throttle_duration_sec=self._throttle_s())
 
 
+_RANK = {'ok': 0, 'warn': 1, 'error': 2, 'stale': 3}
+
+
+def worst(*levels: tuple[str, str]) -> tuple[str, str]:
+    """The most severe of ``(level, message)`` pairs (the first of equal ones)."""
+    out = ('ok', 'running')
+    for lv in levels:
+        if _RANK[lv[0]] > _RANK[out[0]]:
+            out = lv
+    return out
+
+
 def publish_diagnostics(node: Node, pub: Any, stats: NodeStats, extra: list[tuple[str, object]],
-                        *, level: str = 'ok', message: str = 'running') -> None:
-    """Publish the node's counters (plus ``extra``) as one DiagnosticStatus."""
+                        *, level: str = 'ok', message: str = 'running',
+                        window_s: float = 10.0) -> None:
+    """Publish the node's counters (plus ``extra``) as one DiagnosticStatus.
+
+    The level describes the current window: ``level`` (the node's own state, e.g. WARN while
+    holding events), raised to WARN while a message was rejected in the last ``window_s``
+    seconds; OK again once the cause has passed. The counters keep the totals.
+    """
     t_ns = time.time_ns()
     name = f'{node.get_name()}: {node.get_fully_qualified_name()}'
-    if stats.bad and level == 'ok':
-        level, message = 'warn', f'{sum(stats.bad.values())} malformed messages dropped'
+    if stats.rejected_within(window_s):
+        level, message = worst((level, message), (
+            'warn', f'malformed messages dropped in the last {window_s:g} s '
+            f'({sum(stats.bad.values())} in all)'))
+    extra = extra + [('level_window_s', window_s)]
     msg = ros_msgs.diagnostics(t_ns, name, 'hrn_vo_ros', level, message,
                                extra + stats.values())
     pub.publish(msg)
+
+
+def _ignore_stop_signals() -> None:
+    """From here on SIGINT and SIGTERM cannot interrupt the (short, bounded) clean-up.
+
+    ``ros2 launch`` sends SIGINT to every process and escalates with SIGTERM; a user may press
+    Ctrl-C twice. A second signal inside ``destroy_node`` would otherwise raise there (a
+    traceback and exit -2) and leave e.g. the recorder's bag unfinished.
+    """
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError, OSError):   # not the main thread: keep them
+            signal.signal(sig, signal.SIG_IGN)
+
+
+def default_stop_signals() -> None:
+    """SIGINT raises KeyboardInterrupt and SIGTERM ends the process again (Python's defaults),
+    replacing the start-up handlers of :mod:`hrn_vo_ros.nodes`; ``rclpy.init`` then installs
+    its own handlers on top, as in any rclpy program."""
+    with contextlib.suppress(ValueError, OSError):   # not the main thread: keep them
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _shut_down(node: Node | None) -> None:
+    """Destroy the node and shut rclpy down, ignoring further stop signals meanwhile."""
+    steps: list[Callable[[], object]] = [] if node is None else [node.destroy_node]
+    steps.append(rclpy.try_shutdown)
+    while steps:
+        try:
+            _ignore_stop_signals()
+            steps[0]()
+        except KeyboardInterrupt:   # a signal that came before the handlers were replaced
+            continue                # the step was interrupted: run it again, now shielded
+        except Exception as err:     # the clean-up goes on; logged
+            rclpy.logging.get_logger('hrn_vo_ros').warning(f'during shutdown: {err!r}')
+        steps.pop(0)
 
 
 def run(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """The Jazzy entry point: init, spin, shut down cleanly on Ctrl-C or external shutdown.
 
     A :class:`ConfigError` while the node starts (bad parameters) is logged and gives exit 2.
+    SIGINT or SIGTERM at any point from here on — during start-up, spin or shutdown, once or
+    repeatedly — ends the process promptly with exit 0 and no traceback: a signal during
+    start-up stops it there (rclpy's handler shuts the context down, so whatever the node was
+    creating fails; that failure is not reported as an error), and once shutting down further
+    signals are ignored until the bounded clean-up is done (the process is ending: they
+    stay ignored).
     """
-    rclpy.init(args=args)
     node = None
     code = 0
+    initialised = False
+    default_stop_signals()   # drop the import-time exit (hrn_vo_ros.nodes) before rclpy's own
     try:
+        rclpy.init(args=args)
+        initialised = True
         node = make_node()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -75,8 +143,9 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     except ConfigError as err:
         rclpy.logging.get_logger('hrn_vo_ros').error(f'invalid parameters: {err}')
         code = 2
+    except Exception:
+        if not initialised or rclpy.ok():   # a real error, not a signal during start-up
+            raise
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        _shut_down(node)
     return code

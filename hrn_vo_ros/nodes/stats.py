@@ -30,6 +30,7 @@ class NodeStats:
         self._last_seq: int | None = None
         self._proc: deque[float] = deque(maxlen=window)
         self._rate_mark = (time.monotonic(), 0)
+        self.last_reject_wall = -math.inf
 
     def count(self, key: str, n: int = 1) -> None:
         """Add ``n`` to counter ``key`` (messages in, frames out, ...)."""
@@ -38,6 +39,11 @@ class NodeStats:
     def reject(self, kind: str) -> None:
         """Count one malformed message of ``kind`` (``decode``, ``empty``, ...)."""
         self.bad[kind] += 1
+        self.last_reject_wall = time.monotonic()
+
+    def rejected_within(self, seconds: float) -> int:
+        """Whether a message was rejected in the last ``seconds`` of wall time (1) or not (0)."""
+        return int(time.monotonic() - self.last_reject_wall <= seconds)
 
     def sequence(self, seq: int) -> int:
         """Record a message sequence number; returns how many messages were missed before it.

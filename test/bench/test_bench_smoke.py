@@ -55,9 +55,13 @@ CASES = {
     'robustness': Case('bench_robustness.py', ('--smoke', '--kinds', 'rotation', '--methods',
                                                'hrn', '--jobs', '1'),
                        ('1 sequences in', 'tracked  time ok', 'rotation     hrn')),
+    # two 2.5 s loops of the demo bag through the real node processes
+    'soak': Case('bench_soak.py', ('--smoke', '--work', '{work}'),
+                 ('RSS summary (MB)', 'per-loop accuracy', 'loop   2:', 'soak done'),
+                 timeout=240.0),
 }
-SLOW = {'accuracy', 'latency', 'robustness'}
-ROS = {'latency'}
+SLOW = {'accuracy', 'latency', 'robustness', 'soak'}
+ROS = {'latency', 'soak'}
 
 
 def _param(name: str) -> object:

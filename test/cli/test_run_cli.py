@@ -21,7 +21,7 @@ from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import iter_events, read_calib, read_imu, write_sequence
-from hrn_vo_ros.io.estimates import read_estimates, write_estimates
+from hrn_vo_ros.io.estimates import read_estimate_file, read_estimates, STATES, write_estimates
 from hrn_vo_ros.io.nodeconfig import PacketizerNodeConfig, ResonatorNodeConfig
 from hrn_vo_ros.io.pipeline import dataset_pipeline, run_dataset
 from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs
@@ -62,6 +62,27 @@ def synthetic_dataset(folder: Path, n_frames: int = 60, shift_per_frame: float =
     return write_sequence(folder, Sequence(events=ev, calib=calib, imu=imu))
 
 
+def base_columns(path: Path) -> str:
+    """The text of an estimate CSV without its ``quality`` and ``state`` columns (the
+    ``t,h,v,r[,z]`` part, as ``hrn-vo run`` wrote it before those columns existed)."""
+    lines = path.read_text().splitlines()
+    header = lines[0].split(',')
+    keep = [i for i, c in enumerate(header) if c not in ('quality', 'state')]
+    return '\n'.join(','.join(row.split(',')[i] for i in keep) for row in lines) + '\n'
+
+
+def check_quality_state(path: Path, n: int) -> None:
+    """The CSV ends with ``quality`` (finite, in [0, 1]) and ``state`` (a known state) columns,
+    one value per frame."""
+    assert path.read_text().splitlines()[0].split(',')[-2:] == ['quality', 'state']
+    ef = read_estimate_file(path)
+    assert ef.quality is not None and ef.state is not None
+    assert len(ef.quality) == len(ef.state) == n
+    assert np.all(np.isfinite(ef.quality))
+    assert np.all((ef.quality >= 0.0) & (ef.quality <= 1.0))
+    assert set(ef.state) <= set(STATES)
+
+
 @pytest.fixture(scope='module')
 def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return synthetic_dataset(tmp_path_factory.mktemp('run') / 'seq')
@@ -75,9 +96,10 @@ def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Pa
     argv = ['run', str(dataset), '--config', str(ROOT / 'config/shapes_rotation.yaml'),
             '--out', str(out), '--quiet'] + (['--imu'] if imu else [])
     assert main(argv) == 0
-    assert out.read_text().splitlines()[0] == 't,h,v,r'
+    assert out.read_text().splitlines()[0] == 't,h,v,r,quality,state'
     est = read_estimates(out)
     assert len(est) == 60
+    check_quality_state(out, 60)
     assert est.t[0] > 1_000_000 and np.all(np.diff(est.t) > 0)
     # Truth at the last frame: h = 0.15 * 59 = 8.85 px, r = 0.004 * 59 = 0.236 rad.
     assert abs(est.h[-1] - 8.85) < 1.5 and abs(est.v[-1]) < 1.5
@@ -85,9 +107,11 @@ def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Pa
     assert '60 frames in' in capsys.readouterr().out
 
 
-def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0) -> EstimateSeries:
+def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0
+                   ) -> tuple[EstimateSeries, list[float], list[str]]:
     """``hrn-vo run``'s estimates written out as a plain loop (packetizer, gyro angles
-    differenced per frame, resonator), independent of the pipeline modules."""
+    differenced per frame, resonator), independent of the pipeline modules; with the
+    per-frame quality and state."""
     dc = dataset_configs(config, dataset, resonator={'imu.enabled': True} if imu else {})
     pcfg, rcfg = dc.packetizer, dc.resonator
     gyro = GyroIntegrator.from_imu(read_imu(dataset), np.reshape(rcfg.imu.camera_from_imu,
@@ -97,6 +121,8 @@ def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0) -> Est
     packetizer = Packetizer(pcfg)
     hrn = make_backend(rcfg, rng=np.random.default_rng(seed))
     rows, prev = [], None
+    quality: list[float] = []
+    state: list[str] = []
     for batch in iter_events(dataset):
         for frame in packetizer.push(batch):
             delta = None
@@ -105,9 +131,11 @@ def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0) -> Est
                 delta, prev = (None if prev is None else angle - prev), angle
             e = hrn.step(frame.image, frame.t_ns, gyro_delta=delta)
             rows.append((frame.t_ns, e.h, e.v, e.r, e.z))
+            quality.append(e.quality)
+            state.append(e.state)
     a = np.array(rows, dtype=np.float64)
-    return EstimateSeries(np.array([r[0] for r in rows], np.int64), a[:, 1], a[:, 2], a[:, 3],
-                          a[:, 4] if rcfg.scale.enabled else None)
+    return (EstimateSeries(np.array([r[0] for r in rows], np.int64), a[:, 1], a[:, 2], a[:, 3],
+                           a[:, 4] if rcfg.scale.enabled else None), quality, state)
 
 
 @pytest.mark.parametrize(('config', 'imu'), [('shapes_rotation.yaml', False),
@@ -121,15 +149,21 @@ def test_run_and_the_pipeline_give_identical_series(dataset: Path, tmp_path: Pat
     out = tmp_path / 'run.csv'
     assert main(['run', str(dataset), '--config', str(cfg), '--out', str(out), '--quiet']
                 + (['--imu'] if imu else [])) == 0
-    write_estimates(tmp_path / 'loop.csv', reference_loop(dataset, cfg, imu))
+    loop, quality, state = reference_loop(dataset, cfg, imu)
+    write_estimates(tmp_path / 'loop.csv', loop, quality=quality, state=state)
+    write_estimates(tmp_path / 'loop_base.csv', loop)
     dc = dataset_configs(cfg, dataset, resonator={'imu.enabled': True} if imu else {})
     pipe = dataset_pipeline(dataset, dc.packetizer,
                             lambda: make_backend(dc.resonator, rng=np.random.default_rng(0)),
                             imu=imu, with_z=dc.resonator.scale.enabled)
     run = run_dataset(dataset, pipe)
-    write_estimates(tmp_path / 'pipe.csv', run.series)
+    write_estimates(tmp_path / 'pipe.csv', run.series, quality=run.quality, state=run.state)
+    # t,h,v,r[,z] exactly as the plain t,h,v,r[,z] file of the loop ...
+    assert base_columns(out) == (tmp_path / 'loop_base.csv').read_text()
+    # ... and the whole file, quality and state included, byte for byte
     assert out.read_bytes() == (tmp_path / 'loop.csv').read_bytes()
     assert out.read_bytes() == (tmp_path / 'pipe.csv').read_bytes()
+    check_quality_state(out, 60)
     assert len(run.series) == 60 and (run.series.z is not None) == (config != OURS[0])
 
 
@@ -137,8 +171,10 @@ def test_run_with_scale_writes_z(dataset: Path, tmp_path: Path) -> None:
     out = tmp_path / 'est.csv'
     assert main(['run', str(dataset), '--config', str(ROOT / 'config/shapes_translation.yaml'),
                  '--out', str(out), '--quiet', '--set', 'map.learn=false']) == 0
-    assert out.read_text().splitlines()[0] == 't,h,v,r,z'
+    assert base_columns(out).splitlines()[0] == 't,h,v,r,z'
+    assert out.read_text().splitlines()[0] == 't,h,v,r,z,quality,state'
     assert read_estimates(out).z is not None
+    check_quality_state(out, 60)
 
 
 def test_run_bad_inputs_name_the_problem(dataset: Path, tmp_path: Path,
@@ -174,6 +210,15 @@ def test_run_bad_inputs_name_the_problem(dataset: Path, tmp_path: Path,
     # Rectification needs calib.txt.
     assert main(['run', str(short), '--out', out, '--set', 'packetizer.rectify=pinhole']) == 3
     assert 'calib.txt' in capsys.readouterr().err
+    # A readable dataset without meta.json: after reading it, the sensor size is asked for.
+    plain = tmp_path / 'plain'
+    plain.mkdir()
+    (plain / 'events.txt').write_text(''.join(f'0.{k + 1:09d} {k % 200} {k % 100} 1\n'
+                                              for k in range(5000)))
+    assert main(['run', str(plain), '--out', out]) == 2
+    err = capsys.readouterr().err
+    assert '--sensor-size WxH' in err and 'x 0..199, y 0..99' in err
+    assert main(['run', str(plain), '--out', out, '--quiet', '--sensor-size', '240x180']) == 0
 
 
 def test_run_rectifies_with_the_dataset_calibration(dataset: Path, tmp_path: Path,
@@ -252,6 +297,33 @@ def test_graph_takes_the_same_dataset_parameters(dataset: Path, tmp_path: Path) 
     bad.write_text(text.replace('rectify: equidistant', 'rectify: pinhole', 1))
     with pytest.raises(ConfigError, match='needs equidistant-rectified frames'):
         dataset_overrides(dataset, bad, imu=False)             # as hrn-vo run refuses it
+
+
+@pytest.mark.parametrize(('text', 'message'), [
+    (b'\xff\xfe\x00 not text', 'not a UTF-8 text file'),
+    (b'resonator_node:\n  ros__parameters:\n   a: 1\n  b: 2\n',
+     "section 'resonator_node': unknown key\\(s\\) 'b'; expected ros__parameters"),
+    (b'resonator_node:\n  ros__parameters:\n    x: 2001-13-45\n', 'not valid YAML'),
+    (b'resonator_nod:\n  ros__parameters:\n    cleanup: {gamma: 0.5}\n',
+     "unknown section\\(s\\) 'resonator_nod'; expected packetizer_node, resonator_node"),
+    (b'packetizer:\n  ros__parameters:\n    downsample: 2\n',
+     "unknown section\\(s\\) 'packetizer'; expected packetizer_node"),
+    (b'resonator_node:\n  ros__parameters:\n    odometry: {depth_mm: 2.0}\n',
+     'resonator_node: unknown key\\(s\\) odometry.depth_mm; valid OdometryConfig keys: '),
+    (b'packetizer_node:\n  ros__parameters:\n    downsampl: 2\n',
+     'unknown PacketizerConfig key\\(s\\) downsampl'),
+    (b'resonator_node:\n  ros__parameters:\n    map: {1: 2}\n',
+     "section 'resonator_node': parameter name 1 is not a string"),
+])
+def test_load_configs_refuses_broken_and_misspelled_files(tmp_path: Path, text: bytes,
+                                                          message: str) -> None:
+    """Non-UTF-8 bytes, YAML the resolver cannot convert, misspelled sections and keys (also
+    node-only ones) are ConfigErrors naming the file, never defaults used silently."""
+    f = tmp_path / 'params.yaml'
+    f.write_bytes(text)
+    with pytest.raises(ConfigError, match=message) as err:
+        load_configs(f)
+    assert str(err.value).startswith(str(f))
 
 
 def test_load_configs_defaults_overrides_and_errors(tmp_path: Path) -> None:

@@ -248,8 +248,6 @@ def test_fuzz_ros2_bag(storage: str, small_bags: dict[str, Path], workdir: Path)
 
 # ------------------------------------------------------------------------------------ YAML
 
-@pytest.mark.xfail(reason='io/yamlconfig.load_configs lets UnicodeDecodeError out on non-UTF-8 '
-                   'bytes (owner: yamlconfig); passes once it raises ConfigError', strict=False)
 def test_fuzz_yaml_config(workdir: Path) -> None:
     from hrn_vo_ros.io.yamlconfig import load_configs
 

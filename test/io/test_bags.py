@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+import shutil
 
 import numpy as np
 import pytest
@@ -75,6 +76,8 @@ def test_readers_refuse_partial_missing_and_corrupt_bags(tmp_path: Path) -> None
     half.mkdir(parents=True)
     with pytest.raises(BagError, match='unfinished'), bags.open_bag(half):
         pass
+    with pytest.raises(BagError, match=r'convert again.*`hrn-vo recover .*a\.partial`'):
+        bags.open_bag(half)
     with pytest.raises(BagError, match='does not exist'), bags.open_bag(tmp_path / 'nothing'):
         pass
     (tmp_path / 'empty').mkdir()
@@ -202,3 +205,67 @@ def test_open_bag_reads_the_libcaer_driver_recording() -> None:
         assert reader.message_count == 100
         assert bags.qos_profiles(conn)[0].depth == 1000
         assert sum(1 for _ in bags.iter_messages(reader)) == 100
+
+
+def _payload(i: int) -> bytes:
+    return np.random.default_rng(i).integers(0, 256, 8000, dtype=np.uint8).tobytes()
+
+
+def _snapshot_after_flush(tmp_path: Path, flushed: int, pending: int) -> Path:
+    """``snap.partial``: what a writer killed after ``flushed`` messages (then ``flushed`` +
+    ``pending`` written, the rest still in its open chunk) leaves on disk."""
+    snap = tmp_path / 'snap.partial'
+    with bags.BagWriter(tmp_path / 'bag') as w:
+        conn = w.add_topic('/imu', 'sensor_msgs/msg/Imu', bags.RELIABLE_QOS)
+        for i in range(flushed):
+            w.write(conn, 1_000 + i, _payload(i))
+        w.flush()
+        for i in range(flushed, flushed + pending):
+            w.write(conn, 1_000 + i, _payload(i))
+        shutil.copytree(tmp_path / 'bag.partial', snap)
+        (inner,) = snap.iterdir()
+        inner.rename(snap / 'snap')
+        (snap / 'snap' / 'bag.mcap').rename(snap / 'snap' / 'snap.mcap')
+    return snap
+
+
+def test_recover_salvages_every_flushed_message(tmp_path: Path) -> None:
+    snap = _snapshot_after_flush(tmp_path, 300, 40)   # 2.4 MB: 2 full chunks + the flush
+    with pytest.raises(BagError, match='unfinished'):
+        bags.open_bag(snap)
+    res = bags.recover_bag(snap)
+    assert res.dst == tmp_path / 'snap' and res.chunks == 3
+    assert res.counts == {'/imu': 300} and (res.start_ns, res.end_ns) == (1_000, 1_299)
+    assert res.dropped_bytes == 0 and snap.is_dir()          # the source is left as it was
+    assert not (tmp_path / 'snap.partial.recovering').exists()
+    ver = bags.verify_bag(res.dst)
+    assert ver.counts == {'/imu': 300} and ver.chunks_crc_checked == 3
+    with bags.open_bag(res.dst) as reader:
+        msgs = list(bags.iter_messages(reader))
+        assert bags.qos_profiles(reader.connections[0])[0].reliability == \
+            QosReliability.RELIABLE
+    assert [m.t_ns for m in msgs] == list(range(1_000, 1_300))
+    assert all(bytes(m.raw) == _payload(i) for i, m in enumerate(msgs))
+    assert bags.custom_data(res.dst)[bags.RECOVERED_KEY] == str(snap)
+    with pytest.raises(BagError, match='exists already'):
+        bags.recover_bag(snap)
+
+
+def test_recover_stops_at_a_chunk_cut_off_or_damaged(tmp_path: Path) -> None:
+    snap = _snapshot_after_flush(tmp_path, 300, 0)
+    (mcap,) = snap.rglob('*.mcap')
+    data = mcap.read_bytes()
+    first = data.index(bytes([0x06]), 8)           # the first chunk record, after the header
+    mcap.write_bytes(data + data[first:first + 5000])  # a chunk whose writing was cut off
+    res = bags.recover_bag(mcap, tmp_path / 'out')
+    assert res.counts == {'/imu': 300} and res.dropped_bytes == 5000
+    assert 'cut off' in res.stop_reason
+    mcap.write_bytes(data[:first + 100])            # not even the first chunk is complete
+    with pytest.raises(BagError, match='no complete chunk'):
+        bags.recover_bag(snap, tmp_path / 'out2')
+    assert not (tmp_path / 'out2').exists() and not (tmp_path / 'out2.partial').exists()
+    db = tmp_path / 'lite.partial' / 'lite'
+    db.mkdir(parents=True)
+    (db / 'lite.db3').write_bytes(b'')
+    with pytest.raises(BagError, match='sqlite3'):
+        bags.recover_bag(tmp_path / 'lite.partial')

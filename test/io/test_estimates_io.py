@@ -59,6 +59,15 @@ def test_missing_file(tmp_path: Path) -> None:
         read_estimates(tmp_path / 'nope.csv')
 
 
+@pytest.mark.parametrize('data', [b'\xff\xfe\x00\x01binary', b't,h,v,r\n0.1,1,2,\xe9\n',
+                                  bytes(range(256))])
+def test_binary_file_is_a_dataset_error_naming_the_file(tmp_path: Path, data: bytes) -> None:
+    f = tmp_path / 'est.bin'
+    f.write_bytes(data)
+    with pytest.raises(DatasetError, match=r'est\.bin.*not UTF-8'):
+        read_estimates(f)
+
+
 def _dataset(tmp_path: Path) -> tuple[Path, Path]:
     t = np.arange(0.0, 20.0, 1 / 200)
     pan, tilt, roll = 0.3 * np.sin(0.5 * t), 0.2 * np.sin(0.8 * t + 1), 0.6 * np.sin(0.3 * t)
@@ -109,6 +118,49 @@ def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
     assert scan['values'][3] < min(scan['values'][0], scan['values'][6])
 
 
+def test_evaluate_plot_into_a_folder_and_bad_plot_paths(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    """``--plot DIR`` (an existing folder) writes DIR/trajectory.png and prints that path, never
+    a DIR.png next to it; a name without suffix is written exactly as named; a missing folder
+    or an unknown suffix are refused before anything is written."""
+    ds, est = _dataset(tmp_path)
+    folder = tmp_path / 'plots'
+    folder.mkdir()
+    base = ['evaluate', str(ds), str(est), '--kind', 'rotation', '--plot']
+    assert main([*base, str(folder)]) == 0
+    assert f'plot: {folder / "trajectory.png"}' in capsys.readouterr().out
+    assert (folder / 'trajectory.png').stat().st_size > 10_000
+    assert not (tmp_path / 'plots.png').exists()
+    assert main([*base, str(tmp_path / 'bare')]) == 0
+    assert f'plot: {tmp_path / "bare"}\n' in capsys.readouterr().out
+    assert (tmp_path / 'bare').read_bytes()[:4] == b'\x89PNG'
+    assert not (tmp_path / 'bare.png').exists()
+    assert main([*base, str(tmp_path / 'missing' / 'p.png')]) == 2
+    err = capsys.readouterr().err
+    assert '--plot' in err and 'does not exist' in err and str(tmp_path / 'missing') in err
+    assert not (tmp_path / 'missing').exists()
+    assert main([*base, str(tmp_path / 'p.xyz')]) == 2
+    assert '.xyz is no image format' in capsys.readouterr().err
+
+
+def test_evaluate_states_json_is_strict_when_a_state_never_occurs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    ds, est = _dataset(tmp_path)
+    series = read_estimates(est)
+    write_estimates(est, series, quality=np.ones(len(series)), state=['tracking'] * len(series))
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation']) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert any(line.startswith('lost') and 'no evaluated samples' in line for line in out)
+
+    def no_constants(name: str) -> None:
+        raise AssertionError(f'{name} in the JSON line')
+
+    states = json.loads(out[-1], parse_constant=no_constants)['states']
+    assert states['lost'] == {'seconds': 0.0, 'median_error': None, 'evaluated': 0}
+    assert states['tracking']['median_error'] < 0.1
+
+
 def test_evaluate_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     ds, est = _dataset(tmp_path)
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '-2']) == 2
@@ -121,3 +173,17 @@ def test_evaluate_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     short.write_text('\n'.join(est.read_text().splitlines()[:6]) + '\n')
     assert main(['evaluate', str(ds), str(short), '--kind', 'rotation']) == 3
     assert 'only 5 estimates' in capsys.readouterr().err
+
+
+def test_quality_state_columns_round_trip(tmp_path: Path) -> None:
+    from hrn_vo_ros.io.estimates import read_estimate_file
+    est = EstimateSeries(np.array([1, 2, 3], dtype=np.int64), np.zeros(3), np.ones(3),
+                         np.zeros(3))
+    p = write_estimates(tmp_path / 'e.csv', est, quality=[1.0, 0.5, 0.1],
+                        state=['tracking', 'degraded', 'lost'])
+    assert p.read_text().splitlines()[0] == 't,h,v,r,quality,state'
+    ef = read_estimate_file(p)
+    assert ef.state == ['tracking', 'degraded', 'lost']
+    assert ef.quality is not None and list(ef.quality) == [1.0, 0.5, 0.1]
+    old = write_estimates(tmp_path / 'old.csv', est)
+    assert read_estimate_file(old).state is None

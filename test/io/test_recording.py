@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hrn_vo_ros.errors import BagError
+from hrn_vo_ros.errors import BagError, DatasetError
 from hrn_vo_ros.io.bags import typestore
-from hrn_vo_ros.io.recording import BagRecorder, read_readouts
+from hrn_vo_ros.io.recording import BagRecorder, read_readout_estimates, read_readouts
 
 TOPIC = '/resonator_node/readout'
 TS = typestore()
@@ -40,6 +40,32 @@ def test_recorded_readouts_read_back_in_stamp_order(tmp_path: Path) -> None:
     np.testing.assert_array_equal(vals['r'], [0.5, 1.0, 0.0])
     with pytest.raises(BagError, match='no topic /other'):
         read_readouts(tmp_path / 'bag', '/other')
+
+
+def test_readouts_with_quality_and_state_codes_read_as_an_estimate_file(tmp_path: Path
+                                                                         ) -> None:
+    rec = BagRecorder(tmp_path / 'bag', [(TOPIC, 'sensor_msgs/msg/JointState')])
+    for i, (q, code) in enumerate([(0.9, 0), (0.4, 1), (0.1, 2)]):
+        rec.put(TOPIC, i, joint_state(10 + i, {'h': i, 'v': 0.0, 'r': 0.1 * i, 'quality': q,
+                                               'state': code}))
+    rec.close()
+    ef = read_readout_estimates(tmp_path / 'bag', TOPIC)
+    assert ef.series.t.tolist() == [10, 11, 12] and ef.series.z is None
+    np.testing.assert_array_equal(ef.series.h, [0.0, 1.0, 2.0])
+    assert ef.quality is not None and ef.quality.tolist() == [0.9, 0.4, 0.1]
+    assert ef.state == ['tracking', 'degraded', 'lost']
+    # an unknown state code is refused, naming the codes
+    rec = BagRecorder(tmp_path / 'bad', [(TOPIC, 'sensor_msgs/msg/JointState')])
+    rec.put(TOPIC, 0, joint_state(1, {'h': 0.0, 'v': 0.0, 'r': 0.0, 'state': 7}))
+    rec.close()
+    with pytest.raises(DatasetError, match=r'state code 7\.0 is not one of 0 \(tracking\)'):
+        read_readout_estimates(tmp_path / 'bad', TOPIC)
+    # older readouts (h, v, r only) read without quality and state
+    rec = BagRecorder(tmp_path / 'old', [(TOPIC, 'sensor_msgs/msg/JointState')])
+    rec.put(TOPIC, 0, joint_state(1, {'h': 0.0, 'v': 0.0, 'r': 0.0}))
+    rec.close()
+    old = read_readout_estimates(tmp_path / 'old', TOPIC)
+    assert old.quality is None and old.state is None and len(old.series) == 1
 
 
 def test_refuses_to_overwrite_and_unknown_types(tmp_path: Path) -> None:

@@ -10,10 +10,16 @@ import pytest
 from sensor_msgs.msg import CameraInfo, Imu
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.odometry.odometry import OdometryConfig, readout_to_pose
+from hrn_vo_ros.core.odometry.odometry import (
+    mount_transform,
+    OdometryConfig,
+    OdomPose,
+    readout_to_pose,
+    Twist,
+)
 from hrn_vo_ros.errors import DecodeError
 from hrn_vo_ros.io import ros_msgs
-from hrn_vo_ros.io.eventpacket import encode_mono, PacketDecoder
+from hrn_vo_ros.io.eventpacket import encode_evt3, encode_mono, PacketDecoder
 
 
 def test_stamps_round_trip_exactly() -> None:
@@ -108,3 +114,59 @@ def test_camera_info_gives_the_plumb_bob_calibration_or_a_clear_error() -> None:
             width=240, height=180, k=k, distortion_model='rational_polynomial', d=[0.1] * 8))
     with pytest.raises(DecodeError, match='size 0x180'):
         ros_msgs.camera_info_to_calibration(CameraInfo(width=0, height=180, k=k))
+
+
+def test_static_transform_of_a_camera_looking_down() -> None:
+    cfg = OdometryConfig(mount_xyz=(0.5, 0.0, 1.0), mount_rpy=(0.0, math.pi / 2, 0.0))
+    R, t = mount_transform(cfg)
+    tf = ros_msgs.static_transform(42, 'base_link', 'camera', R, t)
+    assert (tf.header.frame_id, tf.child_frame_id) == ('base_link', 'camera')
+    assert ros_msgs.stamp_to_ns(tf.header.stamp) == 42
+    tr, q = tf.transform.translation, tf.transform.rotation
+    assert (tr.x, tr.y, tr.z) == (0.5, 0.0, 1.0)
+    # optical x -> -y, y -> -x, z -> -z: half a turn about (1, -1, 0) / sqrt(2)
+    got = np.array([q.x, q.y, q.z, q.w])
+    want = np.array([1.0, -1.0, 0.0, 0.0]) / math.sqrt(2.0)
+    assert np.allclose(got, want, atol=1e-12) or np.allclose(got, -want, atol=1e-12), got
+    # looking left (yaw 90 deg): optical x -> x, y -> -z, z -> y, i.e. -90 deg about x
+    R, t = mount_transform(OdometryConfig(mount_rpy=(0.0, 0.0, math.pi / 2)))
+    q = ros_msgs.static_transform(0, 'base_link', 'camera', R, t).transform.rotation
+    h = math.sqrt(0.5)
+    np.testing.assert_allclose([q.x, q.y, q.z, q.w], [-h, 0.0, 0.0, h], atol=1e-12)
+
+
+def test_odometry_message_carries_twist_and_covariances() -> None:
+    pose = readout_to_pose(OdometryConfig(focal_length_px=80.0), 5, 8.0, -4.0, 0.3, None,
+                           {'h': 1.0, 'v': 0.5, 'r': 0.9})
+    cov = np.arange(36, dtype=np.float64).reshape(6, 6)      # row-major order is checked
+    tw = Twist(np.array([1.0, 2.0, 3.0]), np.array([4.0, 5.0, 6.0]), cov)
+    od = ros_msgs.pose_to_odometry(pose, 'odom', 'base_link', 1e4, tw)
+    lin, ang = od.twist.twist.linear, od.twist.twist.angular
+    assert (lin.x, lin.y, lin.z, ang.x, ang.y, ang.z) == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+    assert list(od.twist.covariance) == list(range(36))
+    assert od.twist.covariance[1] == cov[0, 1] and od.twist.covariance[6] == cov[1, 0]
+    pc = np.arange(36, dtype=np.float64).reshape(6, 6) * 0.5
+    od = ros_msgs.pose_to_odometry(OdomPose(5, pose.position, pose.quat, pc), 'odom',
+                                   'base_link', 1e4, tw)
+    assert list(od.pose.covariance) == [0.5 * k for k in range(36)]
+    unknown = ros_msgs.pose_to_odometry(pose, 'odom', 'base_link', 1e4)
+    assert list(unknown.twist.covariance) == list((np.eye(6) * 1e4).reshape(36))
+    assert unknown.twist.twist.linear.x == 0.0
+
+
+def test_packet_decoder_reset_restarts_the_evt3_time(rng: np.random.Generator) -> None:
+    def evt3(t0_us: int) -> EventPacket:
+        t = (t0_us + np.arange(50) * 10) * 1000
+        ev = EventArray.from_arrays(t, rng.integers(0, 240, 50), rng.integers(0, 180, 50),
+                                    np.zeros(50, np.uint8))
+        return EventPacket(encoding='evt3', width=240, height=180,
+                           events=encode_evt3(ev).tobytes())
+
+    dec = PacketDecoder()
+    assert int(ros_msgs.events_from_packet(evt3(9_000_000), dec).t[0]) == 9_000_000_000
+    # a camera restart: its time starts again near 0; without a reset that reads as a rollover
+    kept = ros_msgs.events_from_packet(evt3(1_000_000), dec)
+    assert int(kept.t[0]) == (2**24 + 1_000_000) * 1000
+    dec.reset()
+    fresh = ros_msgs.events_from_packet(evt3(1_000_000), dec)
+    assert int(fresh.t[0]) == 1_000_000_000 and len(fresh) == 50

@@ -16,7 +16,9 @@
 
 ``time_base`` is unused: the sensor time is ``(high | low) * 1000`` ns. Decoding is stateful
 across packets (:class:`Evt3Decoder`, one per stream); words before the first TIME_HIGH followed
-by a TIME_LOW are skipped, since no time is known for them.
+by a TIME_LOW are skipped, since no time is known for them. :meth:`Evt3Decoder.reset` starts a
+new stream (the packetizer node calls it when the event clock resets: without it a restarted
+camera's time would continue as one more rollover of the old one).
 """
 
 from __future__ import annotations
@@ -87,6 +89,16 @@ class Evt3Decoder:
     valid_time: bool = False
     seen_high: bool = False
     dropped: int = 0
+
+    def reset(self) -> None:
+        """Start afresh, as for a new stream (a camera restart, a looped bag).
+
+        The time state (the TIME_HIGH / TIME_LOW bits and the rollover count) and the address
+        state (y, vector base x and polarity) are dropped; words before the next TIME_HIGH
+        followed by a TIME_LOW are skipped again. ``dropped`` keeps counting.
+        """
+        self.y = self.time_low = self.time_high = self.base_x = self.polarity = 0
+        self.valid_time = self.seen_high = False
 
     def decode(self, payload: bytes | U8, *, is_bigendian: bool = False) -> EventArray:
         """Change events of one packet, continuing from the previous packet's state.

@@ -8,13 +8,16 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.core.odometry.odometry import (
+    mount_transform,
     OdometryConfig,
+    OdomPose,
     quat_from_matrix,
     R_BASE_OPTICAL,
     readout_to_pose,
     rot_x,
     rot_y,
     rot_z,
+    twist_between,
 )
 from hrn_vo_ros.errors import ConfigError
 
@@ -86,3 +89,83 @@ def test_config_rejects_bad_values() -> None:
         OdometryConfig(motion_model='spiral')
     with pytest.raises(ConfigError, match='focal_length_px'):
         OdometryConfig(focal_length_px=0.0)
+
+
+def test_planar_model_in_base_link_and_camera() -> None:
+    cam_cfg = OdometryConfig(motion_model='planar', focal_length_px=F, depth_m=2.0,
+                             child_frame='camera', sigma_px=0.5, unobserved_variance=99.0)
+    cam = readout_to_pose(cam_cfg, 0, F, -F / 2, 0.3, 0.5, FULL)     # z ignored
+    np.testing.assert_allclose(cam.position, [2.0, -1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(cam.quat, q_axis((0, 0, 1), 0.3), atol=1e-12)
+    cov = cam.covariance
+    assert cov[0, 0] == pytest.approx((0.5 * 2.0 / F) ** 2)            # x from h
+    assert cov[2, 2] == 99.0 and cov[3, 3] == 99.0 and cov[4, 4] == 99.0
+    assert cov[5, 5] == pytest.approx(OdometryConfig().sigma_roll_rad ** 2)
+    base = readout_to_pose(OdometryConfig(motion_model='planar', focal_length_px=F,
+                                          depth_m=2.0), 0, F, -F / 2, 0.3, 0.5, FULL)
+    # optical x (right) = base -y, optical y (down) = base -z, optical z = base x
+    np.testing.assert_allclose(base.position, [0.0, -2.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(base.quat, q_axis((1, 0, 0), 0.3), atol=1e-12)
+    assert base.covariance[0, 0] == 1e4                   # base x = optical z: unobserved
+    assert base.covariance[1, 1] == pytest.approx((0.5 * 2.0 / F) ** 2)
+    assert base.covariance[3, 3] == pytest.approx(OdometryConfig().sigma_roll_rad ** 2)
+
+
+DOWN = OdometryConfig(motion_model='planar', focal_length_px=F, depth_m=2.0,
+                      mount_xyz=(0.5, 0.0, 1.0), mount_rpy=(0.0, math.pi / 2, 0.0))
+
+
+def test_mount_transform_of_a_camera_looking_down() -> None:
+    R, t = mount_transform(DOWN)
+    # pitch 90 deg: the view (optical z) points down, image right (optical x) to the right
+    # of the robot (-y), image down (optical y) backwards (-x)
+    np.testing.assert_allclose(R, [[0, -1, 0], [-1, 0, 0], [0, 0, -1]], atol=1e-15)
+    np.testing.assert_allclose(t, [0.5, 0.0, 1.0])
+    R0, t0 = mount_transform(OdometryConfig())
+    np.testing.assert_allclose(R0, R_BASE_OPTICAL)
+    np.testing.assert_allclose(t0, 0.0)
+    R_yaw, _ = mount_transform(OdometryConfig(mount_rpy=(0.0, 0.0, math.pi / 2)))
+    np.testing.assert_allclose(R_yaw[:, 2], [0, 1, 0], atol=1e-15)       # looking left
+
+
+def test_mounted_camera_moves_base_link() -> None:
+    # the camera slides 1 m along image x (to the robot's right): base_link moves -y, the
+    # mount offset cancels
+    slide = readout_to_pose(DOWN, 0, F / 2, 0.0, 0.0, None, FULL)
+    np.testing.assert_allclose(slide.position, [0.0, -1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(slide.quat, [0, 0, 0, 1], atol=1e-15)
+    # the camera turns +90 deg about its axis (pointing down): base_link yaws -90 deg about
+    # the camera's vertical axis, 0.5 m ahead of it: from (0, 0) to (0.5, 0.5)
+    turn = readout_to_pose(DOWN, 0, 0.0, 0.0, math.pi / 2, None, FULL)
+    np.testing.assert_allclose(turn.position, [0.5, 0.5, 0.0], atol=1e-12)
+    np.testing.assert_allclose(turn.quat, q_axis((0, 0, 1), -math.pi / 2), atol=1e-12)
+
+
+def pose(t_s: float, R: np.ndarray, p: list[float], var: list[float]) -> OdomPose:
+    return OdomPose(int(round(t_s * 1e9)), np.asarray(p, np.float64), quat_from_matrix(R),
+                    np.diag(var))
+
+
+def test_twist_between_is_in_the_child_frame() -> None:
+    R0 = rot_x(math.pi / 2)
+    R1 = R0 @ rot_z(0.1)                        # turned 0.1 rad about its own z in 0.1 s
+    p0 = [1.0, 2.0, 3.0]
+    p1 = list(np.asarray(p0) + R1 @ [0.05, 0.0, 0.0])    # 5 cm along its own x
+    tw = twist_between(pose(1.0, R0, p0, [0.0] * 6), pose(1.1, R1, p1, [0.0] * 6), 7.0)
+    np.testing.assert_allclose(tw.linear, [0.5, 0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(tw.angular, [0.0, 0.0, 1.0], atol=1e-9)
+
+
+def test_twist_covariance_and_no_time_between() -> None:
+    R = rot_x(math.pi / 2) @ rot_z(math.pi / 2)  # child x, y, z = odom z, -x, -y
+    var = [1e-4, 2e-4, 3e-4, 4e-4, 5e-4, 6e-4]
+    a, b = pose(1.0, R, [0, 0, 0], var), pose(1.1, R, [0.1, 0, 0], var)
+    tw = twist_between(a, b, 7.0)
+    np.testing.assert_allclose(tw.linear, [0.0, -1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(tw.angular, 0.0, atol=1e-12)
+    # both poses' variances added, divided by dt^2 = 0.01, in the child's axes
+    np.testing.assert_allclose(np.diag(tw.covariance), [0.06, 0.02, 0.04, 0.12, 0.08, 0.1],
+                               rtol=1e-9)
+    same = twist_between(b, b, 7.0)
+    np.testing.assert_array_equal(same.linear, 0.0)
+    np.testing.assert_array_equal(same.covariance, np.eye(6) * 7.0)

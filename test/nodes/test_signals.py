@@ -1,0 +1,120 @@
+"""Ctrl-C and SIGTERM on real node processes: exit 0, no traceback, promptly, at any phase.
+
+``ros2 launch`` sends SIGINT to every node and escalates with SIGTERM; users press Ctrl-C twice.
+The entry point (``nodes/common.py`` ``run``) must end cleanly whether the signals come during
+start-up, while spinning, or while the node is being destroyed.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytestmark = pytest.mark.ros
+
+# A packetizer node whose start-up and destroy_node are slow and say when they begin, so that a
+# signal surely lands inside them (the real ones take milliseconds).
+SLOW_NODE = """
+import sys, time
+from hrn_vo_ros.nodes.common import run
+from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+
+class Slow(PacketizerNode):
+    def __init__(self):
+        if 'start' in sys.argv:
+            print('starting', flush=True)
+            time.sleep(1.0)
+        super().__init__()
+        print('spinning', flush=True)
+
+    def destroy_node(self):
+        print('destroying', flush=True)
+        time.sleep(0.5)
+        print('destroyed', flush=True)
+        return super().destroy_node()
+
+sys.exit(run(Slow))
+"""
+TIMEOUT = 30.0
+
+
+def start(argv: list[str]) -> subprocess.Popen[str]:
+    env = dict(os.environ, PYTHONUNBUFFERED='1')
+    return subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def wait_line(proc: subprocess.Popen[str], stream: str, text: str) -> None:
+    """Block (bounded) until a line of ``stream`` contains ``text``."""
+    pipe = proc.stdout if stream == 'stdout' else proc.stderr
+    assert pipe is not None
+    end = time.monotonic() + TIMEOUT
+    while time.monotonic() < end:
+        ready, _, _ = select.select([pipe], [], [], 0.1)
+        if ready:
+            line = pipe.readline()
+            if text in line:
+                return
+            if not line and proc.poll() is not None:
+                break
+    proc.kill()
+    pytest.fail(f'no {text!r} on {stream} of {proc.args}')
+
+
+def finish(proc: subprocess.Popen[str], sent: float, limit: float = 10.0) -> str:
+    """Exit code 0, no traceback, within ``limit`` seconds of the first signal."""
+    try:
+        out, err = proc.communicate(timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f'still running {TIMEOUT} s after the signals: {err[-2000:]}')
+    took = time.monotonic() - sent
+    assert proc.returncode == 0, f'exit {proc.returncode}: {err[-2000:]}'
+    assert 'Traceback' not in err and 'Traceback' not in out, err[-2000:]
+    assert took < limit, f'took {took:.1f} s to exit'
+    return out
+
+
+def test_two_quick_sigints_while_spinning() -> None:
+    proc = start([sys.executable, '-m', 'hrn_vo_ros.nodes.packetizer_node'])
+    wait_line(proc, 'stderr', 'events per frame')      # logged at the end of __init__
+    time.sleep(0.3)                                     # spinning now
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.005)
+    proc.send_signal(signal.SIGINT)
+    finish(proc, sent)
+
+
+def test_second_sigint_inside_destroy_node_and_sigterm_after() -> None:
+    proc = start([sys.executable, '-c', SLOW_NODE])
+    wait_line(proc, 'stdout', 'spinning')
+    time.sleep(0.3)                                     # constructed and returned: spinning
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    wait_line(proc, 'stdout', 'destroying')
+    proc.send_signal(signal.SIGINT)                     # what ros2 launch sends on a 2nd Ctrl-C
+    time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)                    # and its escalation
+    out = finish(proc, sent)
+    assert 'destroyed' in out                           # the clean-up ran to its end
+
+
+@pytest.mark.parametrize('first, second', [(signal.SIGTERM, signal.SIGTERM),
+                                           (signal.SIGINT, signal.SIGTERM)])
+def test_signals_during_start_up(first: signal.Signals, second: signal.Signals) -> None:
+    proc = start([sys.executable, '-c', SLOW_NODE, 'start'])
+    wait_line(proc, 'stdout', 'starting')               # inside make_node, after rclpy.init
+    sent = time.monotonic()
+    proc.send_signal(first)
+    time.sleep(0.02)
+    proc.send_signal(second)
+    out = finish(proc, sent)
+    assert 'spinning' not in out                        # stopped during start-up
