@@ -17,10 +17,21 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
 * **median error**: the protocol's metric on its evaluated part (median geodesic angle or
   median position error); the table gives the median and p90 over sequences and the worst;
 * **silent loss**: a loss during which the estimator reports ``state == 'tracking'`` for most
-  of the lost samples; 'n/a' while an estimator's ``Estimate`` has no ``state`` (the HRN and the
-  baseline do not report one yet; the column fills in once they do);
+  of the lost samples; 'n/a' for an estimator whose ``Estimate`` has no ``state`` (the
+  baseline always reports ``'tracking'``, so each of its losses is silent); sequences the
+  protocol cannot evaluate count as lost but not as silent;
+* **late flag**: a loss whose first ``FLAG_FRAMES`` (10) frames all report ``state ==
+  'tracking'`` (the estimator did not say within 10 frames that it may be wrong); 'n/a' as
+  for silent losses;
 * **re-localisation time**: from the start of a loss to the first moment after which the error
   stays below the threshold for 0.5 s; losses that never recover count in "never".
+
+``--cache DIR`` keeps each simulated sequence's frames, ground truth and IMU there (pickles
+keyed by kind, seed and length), so that a second run, e.g. with ``--set``, skips the
+simulation; ``--set KEY=VALUE`` overrides resonator settings of the HRN methods (as
+``hrn-vo run --set``). ``--trace DIR`` writes, per sequence and method,
+``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time, error, state and quality (the
+error-vs-time of the failures).
 
 Examples::
 
@@ -42,6 +53,7 @@ from dataclasses import asdict, dataclass  # noqa: E402
 import math  # noqa: E402
 import multiprocessing  # noqa: E402
 from pathlib import Path  # noqa: E402
+import pickle  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -74,6 +86,7 @@ METRIC = {'rotation': 'median_angle_deg', 'translation': 'median_pos_m', 'arm': 
 LOST_S = 0.5        # a loss lasts longer than this
 START_S = 0.5       # losses are looked for from this time on
 RECOVER_S = 0.5     # re-localised: below the threshold for this long
+FLAG_FRAMES = 10    # a loss must be flagged (state != 'tracking') within this many frames
 
 
 @dataclass
@@ -91,24 +104,71 @@ class Row:
     lost_s: float
     losses: int
     silent: int | None
+    late: int | None
     reloc_s: str          # ';'-separated re-localisation times, 'never' for unrecovered
     wall_s: float
     note: str
     draw: str
 
 
+#: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
+OVERRIDES: dict[str, Any] = {}
+
+
+def _init(overrides: dict[str, Any]) -> None:
+    OVERRIDES.update(overrides)
+
+
+def _value(text: str) -> Any:
+    """A ``--set`` value: bool, int, float or the string."""
+    low = text.lower()
+    if low in ('true', 'false'):
+        return low == 'true'
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
 def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
     """Packetizer and resonator configs as ``hrn-vo run`` makes them for this sequence."""
     with tempfile.TemporaryDirectory() as tmp:        # calib.txt + meta.json, one event
         stub = ecd.write_sequence(Path(tmp) / 'stub', Sequence(seq.events[:1], seq.calib))
-        over = {'imu.enabled': True} if imu else {}
+        over: dict[str, Any] = dict(OVERRIDES)
+        if imu:
+            over['imu.enabled'] = True
         dc = dataset_configs(ROOT / 'config' / CASES[kind].config, stub, resonator=over)
     return dc.packetizer, dc.resonator
 
 
+def _frames(kind: str, seed: int, seconds: float, cache: str
+            ) -> tuple[Any, Sequence, dict[str, float], np.ndarray, np.ndarray]:
+    """The draw, its sequence (events cut to one), motion summary and frames; cached."""
+    path = Path(cache) / f'{kind}_{seed}_{seconds:g}.pkl' if cache else None
+    if path is not None and path.exists():
+        with open(path, 'rb') as f:
+            return tuple(pickle.load(f))  # type: ignore[return-value]
+    d = draw(kind, seed)
+    seq = simulate_draw(d, seconds)
+    info = describe_motion(seq)
+    pcfg, _ = _configs(kind, seq, False)
+    if pcfg.rectify != 'none':
+        pcfg = with_calibration(pcfg, seq.calib)
+    t, imgs = frames_from_events(seq.events, pcfg)
+    small = Sequence(seq.events[:1], seq.calib, seq.imu, seq.groundtruth)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, 'wb') as f:
+            pickle.dump((d, small, info, t, imgs), f)
+    return d, small, info, t, imgs
+
+
 def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
-         ) -> tuple[EstimateSeries, list[str] | None]:
-    """Run one method over the frames; returns the estimate and the states (None: no state)."""
+         ) -> tuple[EstimateSeries, list[str] | None, np.ndarray]:
+    """Run one method over the frames; returns the estimate, the states (None: no state) and
+    the qualities (NaN where an estimate has none)."""
     _, rcfg = _configs(kind, seq, method == 'hrn_imu')
     gyro = None
     if method == 'baseline':
@@ -120,7 +180,7 @@ def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
             assert seq.imu is not None
             rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
             gyro = GyroIntegrator.from_imu(seq.imu, rot)
-    rows, states = [], []
+    rows, states, quality = [], [], []
     prev = None
     for i in range(len(t)):
         delta = None
@@ -131,10 +191,17 @@ def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
         e = est.step(imgs[i], int(t[i]), gyro_delta=delta)
         rows.append((e.h, e.v, e.r, e.z))
         states.append(getattr(e, 'state', None))
+        quality.append(float(getattr(e, 'quality', math.nan)))
     arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
     est_s = EstimateSeries(np.asarray(t, dtype=np.int64), arr[:, 0], arr[:, 1], arr[:, 2],
                            arr[:, 3] if rcfg.scale.enabled else None)
-    return est_s, (None if any(s is None for s in states) else [str(s) for s in states])
+    return (est_s, (None if any(s is None for s in states) else [str(s) for s in states]),
+            np.asarray(quality, np.float64))
+
+
+def late_flags(st: np.ndarray, eps: list[tuple[int, int, float | None]]) -> int:
+    """Losses whose first ``FLAG_FRAMES`` samples all report ``'tracking'``."""
+    return sum(bool(np.all(st[i:min(i + FLAG_FRAMES, j + 1)] == 'tracking')) for i, j, _ in eps)
 
 
 def losses(t_s: np.ndarray, err: np.ndarray, thr: float
@@ -168,24 +235,20 @@ def losses(t_s: np.ndarray, err: np.ndarray, thr: float
     return out
 
 
-def job(task: tuple[str, int, float, tuple[str, ...]]) -> list[Row]:
+def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
     """Simulate one draw and run and evaluate every method on it (in a worker process)."""
-    kind, seed, seconds, methods = task
-    d = draw(kind, seed)
-    seq = simulate_draw(d, seconds)
-    info = describe_motion(seq)
+    kind, seed, seconds, methods, trace, cache = task
+    d, seq, info, t, imgs = _frames(kind, seed, seconds, cache)
     peak = info['peak_deg_s'] if kind == 'rotation' else info['peak_m_s']
-    pcfg, _ = _configs(kind, seq, False)
-    if pcfg.rectify != 'none':
-        pcfg = with_calibration(pcfg, seq.calib)
-    t, imgs = frames_from_events(seq.events, pcfg)
     assert seq.groundtruth is not None
     out = []
     for method in methods:
         t0 = time.perf_counter()
-        note, med, lost, lost_s, eps, silent = '', math.inf, True, seconds, [], None
+        note, med, lost, lost_s, eps = '', math.inf, True, seconds, []
+        silent: int | None = None
+        late: int | None = None
         try:
-            est, states = _run(method, kind, seq, t, imgs)
+            est, states, quality = _run(method, kind, seq, t, imgs)
             res = evaluate(seq.groundtruth, est, kind)
             s = res.series
             keep = s.t_s >= START_S
@@ -194,15 +257,38 @@ def job(task: tuple[str, int, float, tuple[str, ...]]) -> list[Row]:
             eps = losses(t_s, err, THRESHOLD[kind])
             lost = bool(eps)
             lost_s = float(sum(t_s[j] - t_s[i] for i, j, _ in eps))
-            if states is not None:
-                st = np.asarray(states)[: len(s.t_s)][keep]
+            # the frame of each evaluated sample (its time minus the lag, nearest)
+            tf = (t.astype(np.float64) - float(seq.groundtruth.t[0])) * 1e-9 - res.lag_s
+            idx = np.clip(np.searchsorted(tf, s.t_s), 0, len(tf) - 1)
+            prev = np.clip(idx - 1, 0, len(tf) - 1)
+            idx = np.where(np.abs(tf[prev] - s.t_s) < np.abs(tf[idx] - s.t_s), prev, idx)
+            st_all = None if states is None else np.asarray(states)[idx]
+            if st_all is not None:
+                st = st_all[keep]
                 silent = sum(np.mean(st[i:j + 1] == 'tracking') > 0.5 for i, j, _ in eps)
+                late = late_flags(st, eps)
+            if trace:
+                _trace(Path(trace) / f'{kind}_{seed}_{method}.csv', s.t_s, s.err, st_all,
+                       quality[idx])
         except Exception as err:      # a failed evaluation counts as lost
             note = f'{type(err).__name__}: {str(err)[:80]}'
         reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
-                       len(eps), silent, reloc, time.perf_counter() - t0, note, d.summary()))
+                       len(eps), silent, late, reloc, time.perf_counter() - t0, note,
+                       d.summary()))
     return out
+
+
+def _trace(path: Path, t_s: np.ndarray, err: np.ndarray, states: np.ndarray | None,
+           quality: np.ndarray) -> None:
+    """Per-sample error, state and quality of one method on one sequence."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, 'w', newline='') as f:
+        w = csv.writer(f)
+        w.writerow(['t_s', 'err', 'state', 'quality'])
+        for i in range(len(t_s)):
+            w.writerow([f'{t_s[i]:.4f}', f'{err[i]:.6g}',
+                        '' if states is None else states[i], f'{quality[i]:.4f}'])
 
 
 def _fmt(v: float, kind: str) -> str:
@@ -216,7 +302,8 @@ def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
     lines = [f'lost: error > 10° (rotation) / 5 cm (translation, arm) for > {LOST_S:g} s, '
              f'on the calibrated estimate from {START_S:g} s on; tracked = never lost',
              f'{"kind":12s} {"method":9s} {"tracked":>8s} {"time ok":>8s} {"median":>8s} '
-             f'{"p90":>8s} {"worst":>16s} {"silent":>7s} {"reloc med":>9s} {"never":>6s}']
+             f'{"p90":>8s} {"worst":>16s} {"silent":>7s} {"late":>5s} {"reloc med":>9s} '
+             f'{"never":>6s}']
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method]
@@ -226,8 +313,11 @@ def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
             tracked = sum(not r.lost for r in rs)
             span = np.array([max(r.lost_s, 0.0) for r in rs])
             worst = rs[int(np.argmax(meds))]
-            silent = ('n/a' if any(r.silent is None for r in rs)
+            # (None: no state, or the protocol failed on the sequence)
+            silent = ('n/a' if all(r.silent is None for r in rs)
                       else str(sum(int(r.silent or 0) for r in rs)))
+            late = ('n/a' if all(r.late is None for r in rs)
+                    else str(sum(int(r.late or 0) for r in rs)))
             rel = [float(x) for r in rs for x in r.reloc_s.split(';') if x and x != 'never']
             never = sum(x == 'never' for r in rs for x in r.reloc_s.split(';'))
             finite = meds[np.isfinite(meds)]
@@ -238,7 +328,7 @@ def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
             lines.append(f'{kind:12s} {method:9s} {tracked:>3d}/{len(rs):<4d} {100 * ok:7.1f}% '
                          f'{_fmt(med, kind):>8s} {_fmt(p90, kind):>8s} '
                          f'{_fmt(worst.median_err, kind) + f" (s{worst.seed})":>16s} '
-                         f'{silent:>7s} '
+                         f'{silent:>7s} {late:>5s} '
                          f'{(f"{np.median(rel):.2f} s" if rel else "-"):>9s} {never:>6d}')
     return lines
 
@@ -283,17 +373,32 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--smoke', action='store_true', help='tiny run: 1 draw per kind, 6 s')
     p.add_argument('--csv', type=Path, default=None, help='write the per-sequence rows here')
     p.add_argument('--plot', type=Path, default=None, help='write an error-distribution PNG')
+    p.add_argument('--trace', type=Path, default=None,
+                   help='write per-sequence error/state/quality CSVs into this folder')
+    p.add_argument('--cache', type=Path, default=None,
+                   help='keep the simulated frames here and reuse them')
+    p.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
+                   help='override a resonator setting of the HRN methods (repeatable)')
+    p.add_argument('--seeds', type=int, nargs='+', default=None,
+                   help='run these seeds instead of the first -n of the split')
     args = p.parse_args(argv)
     if args.smoke:
         args.n, args.seconds = 1, 6.0
-    seeds = tuning_seeds(args.n) if args.tuning else fresh_seeds(args.n)
-    tasks = [(k, s, args.seconds, tuple(args.methods)) for k in args.kinds for s in seeds]
+    seeds = args.seeds or (tuning_seeds(args.n) if args.tuning else fresh_seeds(args.n))
+    trace = '' if args.trace is None else str(args.trace)
+    cache = '' if args.cache is None else str(args.cache)
+    over = {}
+    for item in args.set:
+        key, _, val = item.partition('=')
+        over[key.strip()] = _value(val.strip())
+    tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
+             for k in args.kinds for s in seeds]
     print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
           f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs',
           flush=True)
     t0 = time.perf_counter()
     rows: list[Row] = []
-    with multiprocessing.get_context('spawn').Pool(args.jobs) as pool:
+    with multiprocessing.get_context('spawn').Pool(args.jobs, _init, (over,)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]

@@ -15,10 +15,12 @@ The estimate CSV gains the columns ``quality`` (tracking quality, 0..1) and ``st
 (tracking, degraded or lost); every frame keeps a row. ``--tum FILE`` also writes the estimate
 as a TUM trajectory ``timestamp tx ty tz qx qy qz qw``: the camera's optical frame (x right, y
 down, z forward) relative to the first frame; the rotation kind (``odometry.motion_model``
-rotation) gives the orientation Ry(pan) Rx(tilt) Rz(roll) with pan = atan(h/f), tilt =
--atan(v/f) at the focal length f in frame pixels (``focal_px``, else ``odometry.
-focal_length_px``), the translation kind the position at the scene depth; compare with the
-dataset's groundtruth.txt after aligning the first pose (docs in ``io.estimates``).
+rotation) gives the orientation from h, v, r at the focal length f in frame pixels
+(``focal_px``, else ``odometry.focal_length_px``) through ``odometry.projection``: pinhole
+Ry(pan) Rx(tilt) Rz(roll) with pan = atan(h/f), tilt = -atan(v/f); equidistant (frames rectified
+equidistant) the swing of angle |(h, v)|/f, then Rz(roll); the translation kind the position at
+the scene depth; compare with the dataset's groundtruth.txt after aligning the first pose
+(docs in ``io.estimates``).
 
 Datasets:
 

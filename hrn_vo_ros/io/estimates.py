@@ -23,8 +23,10 @@ TUM trajectories (``timestamp tx ty tz qx qy qz qw``, space-separated, seconds a
 ``#`` header line): the pose of the camera's optical frame (x right, y down, z forward) at each
 frame time, relative to the camera at the first frame, as
 :func:`~hrn_vo_ros.core.odometry.odometry.camera_pose` reads it out: the rotation kind gives
-the orientation ``Ry(pan) Rx(tilt) Rz(roll)`` with ``pan = atan(h / f)``,
-``tilt = -atan(v / f)`` (``f`` the focal length in frame pixels) and zero position; the
+the orientation from ``h``, ``v``, ``r`` (``f`` the focal length in frame pixels) through the
+config's ``odometry.projection``: pinhole ``Ry(pan) Rx(tilt) Rz(roll)`` with
+``pan = atan(h / f)``, ``tilt = -atan(v / f)``; equidistant (frames rectified equidistant) the
+swing of angle ``|(h, v)| / f`` about ``(-v, h, 0)``, then ``Rz(roll)``; zero position; the
 translation kind gives the position ``(h d / f, v d / f, d (1 - exp(-z)))`` at the scene depth
 ``d`` with the roll as the orientation. The ground truth of the Event Camera Dataset
 (``groundtruth.txt``: ``t px py pz qx qy qz qw``, camera in the world) is already in this form;

@@ -75,13 +75,6 @@ def test_dataset_needs_sensor_size(tmp_path: Path, rot_seq: Path) -> None:
     assert res.returncode != 0 and '--sensor-size' in res.stderr
 
 
-def _quat_mat(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
 def test_tum_rotation(tmp_path: Path, rot_seq: Path) -> None:
     est, tum = tmp_path / 'est.csv', tmp_path / 'est.tum'
     res = hrn_vo('run', str(rot_seq), '--config', str(ROOT / 'config' / 'shapes_rotation.yaml'),
@@ -95,16 +88,15 @@ def test_tum_rotation(tmp_path: Path, rot_seq: Path) -> None:
     e = np.loadtxt(tum)
     g = np.loadtxt(rot_seq / 'groundtruth.txt')
     assert e.shape[1] == 8
-    # ground truth at the estimate times (nearest pose), first poses aligned
-    # (estimate times shifted by the protocol's lag, as evaluate does)
-    idx = np.clip(np.searchsorted(g[:, 0], e[:, 0] - doc['lag_s']), 0, len(g) - 1)
-    r_g0 = _quat_mat(g[idx[0], 4:])
-    r_e0 = _quat_mat(e[0, 4:])
-    errs = []
-    for k in range(len(e)):
-        rg = r_g0.T @ _quat_mat(g[idx[k], 4:])
-        re = r_e0.T @ _quat_mat(e[k, 4:])
-        c = (np.trace(rg.T @ re) - 1) / 2
-        errs.append(np.degrees(np.arccos(np.clip(c, -1, 1))))
-    geo = float(np.median(errs))
-    assert geo <= 2 * median + 0.5, (geo, median)
+    # ground truth interpolated (slerp) at the estimate times shifted by the protocol's lag, as
+    # evaluate does; first poses aligned (evo's origin alignment); geodesic angle per frame
+    from scipy.spatial.transform import Rotation, Slerp
+    t = e[:, 0] - doc['lag_s']
+    keep = (t >= g[0, 0]) & (t <= g[-1, 0])
+    rg = Slerp(g[:, 0], Rotation.from_quat(g[:, 4:]))(t[keep])
+    re = Rotation.from_quat(e[keep, 4:])
+    err = (rg[0].inv() * rg).inv() * (re[0].inv() * re)
+    geo = float(np.median(np.degrees(err.magnitude())))
+    # within 2x of the protocol's median (which also fits the scale): measured 0.32 vs 0.26 deg
+    # on this sequence; the pinhole (atan) reading of equidistant frames gave 0.65
+    assert geo <= 2 * median, (geo, median)

@@ -183,6 +183,10 @@ class TrackingConfig:
                             lo=0.001, hi=1.0)
     overlap_floor: float = param(0.02, 'overlap at or below which the quality is 0 (the '
                                  'overlap of a frame at a wrong pose)', lo=0.0, hi=1.0)
+    overlap_highpass: float = param(3.0, 'the overlap (fast engine) weights the spectra by '
+                                    '1 - exp(-|k|^2 / (2 c^2)), k in frequency bins: the low '
+                                    "frequencies of the frame's support window match the map "
+                                    'at any pose (0: only DC removed)', lo=0.0, hi=100.0)
     degrade: float = param(0.45, 'quality below which a tracking frame turns degraded',
                            lo=0.0, hi=1.0)
     recover: float = param(0.6, 'quality at or above which degraded frames count towards '
@@ -193,6 +197,20 @@ class TrackingConfig:
                              'track lost', lo=1, hi=1000)
     map_quality: float = param(0.45, 'frames of lower quality do not update the map', lo=0.0,
                                hi=1.0)
+    sharp_floor: float = param(0.2, 'lowest peak similarity of the h, v, r states at or below '
+                               'which the quality is 0 (the quality is the lower of the '
+                               'overlap term and this sharpness term)', lo=0.0, hi=1.0)
+    sharp_full: float = param(0.5, 'lowest peak similarity at or above which the sharpness '
+                              'term is 1 (<= sharp_floor: no sharpness term)', lo=0.0, hi=1.0)
+    hold_gain: float = param(0.15, 'a sparse frame (hold_density) of quality below degrade '
+                             'moves the states only if its quality exceeds that of the '
+                             'predicted pose by this much; else the states keep the prediction '
+                             '(hot-pixel and noise frames of a pause cannot move the track; '
+                             '-1: off)', lo=-1.0, hi=1.0)
+    hold_density: float = param(0.5, 'a frame is sparse for hold_gain with fewer on pixels '
+                                'than this fraction of the running mean over tracked frames '
+                                '(a full frame of a fast jump keeps converging)', lo=0.0,
+                                hi=10.0)
     relocalise: bool = param(True, 'while lost, search the map globally over roll and shift '
                              'and restart the factors from the best candidates')
     rolls: int = param(24, 'roll candidates of the global search (evenly over the full turn)',

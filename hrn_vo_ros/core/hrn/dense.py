@@ -22,6 +22,7 @@ from hrn_vo_ros.core.hrn.logpolar import (
 )
 from hrn_vo_ros.core.hrn.shared import (
     blend_state,
+    centred_mod,
     cleanup_weights,
     factor_codebooks,
     FactorCodebook,
@@ -29,6 +30,7 @@ from hrn_vo_ros.core.hrn.shared import (
     normalised_similarity,
     Real,
     state_gamma,
+    weighted_overlap,
 )
 
 
@@ -91,6 +93,16 @@ class DenseEngine:
         self.inputs: dict[str, NDArray[np.complexfloating]] = {}
         self.m = np.zeros(self.phi_c.shape[0], dtype)
         self.m0 = self.m
+        # the overlap's high-pass weight (tracking.overlap_highpass) over the DFT frequencies
+        # k = phase n / 2π of each element; random codebooks have no frequencies: plain overlap
+        self._ov_w: Real | None = None
+        if cfg.codebook.kind == 'dft':
+            kx = centred_mod(ph['h'] * wc / (2.0 * math.pi), wc)
+            ky = centred_mod(ph['v'] * hc / (2.0 * math.pi), hc)
+            c = cfg.tracking.overlap_highpass
+            k2 = kx ** 2 + ky ** 2
+            self._ov_w = (np.asarray(1.0 - np.exp(-k2 / (2.0 * c ** 2)), np.float64) if c > 0.0
+                          else (k2 > 1e-12).astype(np.float64))
 
     @property
     def blur_dtype(self) -> type[np.floating]:
@@ -189,7 +201,10 @@ class DenseEngine:
         return t
 
     def overlap(self, target: NDArray[np.complexfloating]) -> float:
-        """Normalised frame-map overlap ``Re<m, t> / (|m| |t|)`` (codebook space), in [-1, 1]."""
+        """Normalised frame-map overlap in [-1, 1]: with DFT codebooks high-passed as the fast
+        engine's (``Re<w m, w t> / (|w m| |w t|)``), else ``Re<m, t> / (|m| |t|)``."""
+        if self._ov_w is not None:
+            return weighted_overlap(self.m, target, self._ov_w)
         nm = float(np.linalg.norm(self.m)) * float(np.linalg.norm(target))
         return float(np.vdot(self.m, target).real) / nm if nm > 0.0 else 0.0
 

@@ -22,11 +22,12 @@ from hrn_vo_ros.core.hrn.shared import (
     Complex,
     factor_codebooks,
     Floats,
+    highpass_weights,
     normalised_similarity,
     Real,
-    spectral_overlap,
     Spectrum,
     state_gamma,
+    weighted_overlap,
 )
 
 
@@ -86,6 +87,8 @@ class FastEngine:
         self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
         self._keep_drive = cfg.readout.source == 'drive'   # (only that readout needs them)
         self.inputs: dict[str, Complex] = {}   # the last cleanup inputs (marginals) a
+        self._ov_w = highpass_weights(g.canvas_height, g.canvas_width,
+                                      cfg.tracking.overlap_highpass).astype(np.float32)
         self.m: Spectrum = np.zeros((g.canvas_height, g.canvas_width), self._cdt)
         self.m0 = self.m
         self._mc = self.m                           # m̂* (changes once per frame)
@@ -300,9 +303,11 @@ class FastEngine:
         return self._to_map(S, point)
 
     def overlap(self, target: Spectrum) -> float:
-        """Normalised frame-map overlap ``Re<m, t> / (|m| |t|)`` without the DC term (the
-        canvas is non-negative, so DC would dominate), in [-1, 1]; 0 for a blank frame."""
-        return spectral_overlap(self.m, target)
+        """Normalised frame-map overlap ``Re<w m, w t> / (|w m| |w t|)``, in [-1, 1], with
+        the high-pass weight ``w`` of ``tracking.overlap_highpass`` (no DC: the canvas is
+        non-negative; no low frequencies: the frame's support window overlaps the map at any
+        pose); 0 for a blank frame."""
+        return weighted_overlap(self.m, target, self._ov_w)
 
     def relocalise(self, S: Spectrum, rolls: int, z: float, keep: int
                    ) -> list[tuple[float, dict[str, float]]]:

@@ -17,7 +17,9 @@ Public API:
     - ``map_image()``, ``egocentric_map_image()``: the map on the canvas, (H_c, W_c) float64.
     - ``readout_axis(name) -> (K,)``: the physical value of each similarity entry.
     - ``factors`` (``('h', 'v', 'r')``, or with ``'z'``), ``iteration``, ``geometry``,
-      ``rejected_frames``, ``innovation_deg``, ``reset()``.
+      ``rejected_frames``, ``innovation_deg``, ``reset()``; tracking (``docs/model.md``,
+      section 9): ``state``, ``quality``, ``overlap``, ``relocalisations``, ``held_frames``
+      (poor sparse frames that kept the prediction).
 
 Signs: binding the map with ``h0^a`` moves the image content by +a pixels, and the output
 ``h = -a`` is the camera's position in the map (x right, y down); a camera roll φ
@@ -119,6 +121,8 @@ class HRN:
         self.quality = 1.0              # quality of the last valid frame
         self.overlap = 1.0              # its frame-map overlap at the estimate
         self.relocalisations = 0        # accepted re-localisations
+        self.held_frames = 0            # poor frames whose update was undone (hold_gain)
+        self._density: float | None = None   # running mean on-pixel count of tracked frames
         self._ref: float | None = None  # running reference overlap o_ref
         self._good_run = 0              # consecutive frames of quality >= recover
         self._bad_run = 0               # consecutive frames of quality < degrade
@@ -198,13 +202,15 @@ class HRN:
         self._velocity = step if old is None else {
             k: (1.0 - a) * old[k] + a * d for k, d in step.items()}
 
-    def _predict_velocity(self) -> None:
-        """Constant-velocity prediction: bind h, v, r with a fraction of their velocity."""
+    def _predict_velocity(self) -> dict[str, float]:
+        """Constant-velocity prediction: bind h, v, r with a fraction of their velocity;
+        returns the shifts (index units)."""
         if self._velocity is None:
-            return
+            return {}
         k = self.cfg.cleanup.predict_velocity
         for name, d in self._velocity.items():
             self._engine.shift(name, k * d)
+        return {name: k * d for name, d in self._velocity.items()}
 
     def _innovation_deg(self, point: dict[str, float], predicted: dict[str, float]) -> float:
         """Largest angle between a readout and the gyro prediction (roll, pan/tilt), degrees."""
@@ -248,6 +254,7 @@ class HRN:
             img = self._sphere.warp(img, self._out['h'], self._out['v'], self._out['r'])
             if not img.any():             # every event warped off the frame: nothing to use
                 return self._repeat(t_ns)
+        n_on = int(np.count_nonzero(img))
         canvas = self._place(img)
         eng = self._engine
         first = not self._started
@@ -256,13 +263,18 @@ class HRN:
             self._started = True
         predicted: dict[str, float] | None = None
         held: dict[str, Any] = {}
+        shift: dict[str, float] = {}
         if not first and gyro_delta is not None:       # the gyro, else the velocity predicts
             shift = self._imu_predict(gyro_delta)
             if c.imu.gate_deg > 0.0:
                 predicted = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
                 held = {k: x.copy() for k, x in eng.state.items()}
         elif c.cleanup.predict_velocity > 0.0:         # no-op until two valid frames
-            self._predict_velocity()
+            shift = self._predict_velocity()
+        # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
+        prior = ({k: x.copy() for k, x in eng.state.items()} if c.tracking.enabled
+                 and c.tracking.hold_gain > -1.0 and not first else None)
+        prior_point = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
         S = eng.encode(canvas)
         for _ in range(c.cleanup.iterations_per_frame):
             eng.iterate(S)
@@ -285,13 +297,36 @@ class HRN:
         target: Any = None
         if c.tracking.enabled and not first:
             target = eng.map_target(S, point)
-            self._track_state(self._quality(eng.overlap(target)))
+            o1 = eng.overlap(target)
+            q = self._quality(o1)
+            weak = self._density is not None and n_on < c.tracking.hold_density * self._density
+            if prior is not None and weak and not rejected \
+                    and min(q, self._sharpness(peak)) < c.tracking.degrade:
+                # a poor, sparse frame moves the states only if that clearly improves the
+                # match over the prediction: else they keep it (hot pixels, noise, a pause)
+                books = self._engine.books
+                pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
+                t0 = eng.map_target(S, pp)
+                o0 = eng.overlap(t0)
+                q0 = self._quality(o0)
+                if q - q0 < c.tracking.hold_gain:
+                    eng.state.update(prior)
+                    sims = eng.similarities()
+                    peak = {k: float(np.max(x)) for k, x in sims.items()}
+                    point, target, q = pp, t0, q0
+                    self.held_frames += 1
+                else:
+                    self.overlap = o1
+            self._track_state(min(q, self._sharpness(peak)))
             if self.state == 'lost' and c.tracking.relocalise:
                 found = self._relocalise(S, point)
                 if found is not None:
                     point, spread, peak, sims, target = found
         self._point = point
         tracking = self.state == 'tracking'
+        if tracking:        # running mean of the tracked frames' on-pixel counts
+            d = self._density
+            self._density = float(n_on) if d is None else d + c.tracking.ref_rate * (n_on - d)
         if c.cleanup.predict_velocity > 0.0:
             if tracking:
                 self._track_velocity(point)
@@ -314,6 +349,16 @@ class HRN:
         if ref is None:                 # the first overlap after the map's frame
             ref = self._ref = max(overlap, 2.0 * tc.overlap_floor)
         return min(max((overlap - tc.overlap_floor) / (ref - tc.overlap_floor), 0.0), 1.0)
+
+    def _sharpness(self, peak: dict[str, float]) -> float:
+        """Quality term of the factors' peak similarities (the lowest of h, v, r): a state
+        split between two poses (a roll ambiguous by 180 degrees, a shift between two
+        matches) has a low peak even where the overlap looks fine."""
+        tc = self.cfg.tracking
+        if tc.sharp_full <= tc.sharp_floor:
+            return 1.0
+        c = min(peak.get(k, 1.0) for k in ('h', 'v', 'r'))
+        return min(max((c - tc.sharp_floor) / (tc.sharp_full - tc.sharp_floor), 0.0), 1.0)
 
     def _track_state(self, q: float) -> None:
         """The state machine with hysteresis (``docs/model.md``, tracking section)."""
@@ -351,6 +396,8 @@ class HRN:
             pt, spread, peak = self._readout(sims)
             target = eng.map_target(S, pt)
             ov = eng.overlap(target)
+            if self._sharpness(peak) < tc.relock:     # a split state is no re-localisation
+                continue
             if best is None or ov > best[0]:
                 best = (ov, {k: x.copy() for k, x in eng.state.items()},
                         (pt, spread, peak, sims, target))

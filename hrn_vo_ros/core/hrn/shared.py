@@ -179,6 +179,30 @@ def spectral_overlap(m: Spectrum, t: Spectrum) -> float:
     return num / math.sqrt(nm * nt)
 
 
+def highpass_weights(height: int, width: int, cutoff: float) -> Real:
+    """``1 - exp(-|k|² / (2 cutoff²))`` over the canvas spectrum (k in frequency bins, FFT
+    order): 0 at DC, about 1 beyond ``2 cutoff`` bins. Shapes: returns (height, width)."""
+    ky = np.fft.fftfreq(height) * height
+    kx = np.fft.fftfreq(width) * width
+    k2 = ky[:, None] ** 2 + kx[None, :] ** 2
+    if cutoff <= 0.0:
+        w = np.ones((height, width))
+        w[0, 0] = 0.0
+        return w
+    return np.asarray(1.0 - np.exp(-k2 / (2.0 * cutoff ** 2)), np.float64)
+
+
+def weighted_overlap(m: Spectrum, t: Spectrum, w: Floats) -> float:
+    """``Re<w m, w t> / (|w m| |w t|)`` in [-1, 1] (``w`` real, 0 at DC: the frame's support
+    window and DC carry no pose information); 0 if either is blank."""
+    wm, wt = m * w, t * w
+    nm = float(np.vdot(wm, wm).real)
+    nt = float(np.vdot(wt, wt).real)
+    if nm <= 0.0 or nt <= 0.0:
+        return 0.0
+    return float(np.vdot(wm, wt).real) / math.sqrt(nm * nt)
+
+
 def population_readout(sim: Real, half_window: int, circular: bool
                        ) -> tuple[float, float, float]:
     """Population vector around the peak (paper Eq. 7), negative weights clipped to 0.

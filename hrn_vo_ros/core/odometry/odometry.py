@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.configbase import param, validate
+from hrn_vo_ros.core.odometry.geometry import swing_twist_to_matrix
 from hrn_vo_ros.errors import ConfigError
 
 # Rotation from the camera optical frame to base_link (REP-103): columns are the optical axes
@@ -69,6 +70,12 @@ class OdometryConfig:
                               'through the focal length), translation (metres at a depth) or '
                               'planar (translation parallel to the scene plane + yaw, no z)',
                               choices=('rotation', 'translation', 'planar'))
+    projection: str = param('pinhole', 'How the rotation model turns h, v into angles: '
+                            'pinhole (pan = atan(h/f), tilt = -atan(v/f), then the roll: frames '
+                            'not rectified or rectified pinhole) or equidistant (a swing of '
+                            '|(h, v)|/f about an axis in the image plane, then the roll: frames '
+                            'rectified equidistant, as the sphere correction reads them)',
+                            choices=('pinhole', 'equidistant'))
     focal_length_px: float = param(79.6, 'Focal length in downsampled pixels (fx of calib.txt '
                                    'divided by the downsampling factor; DAVIS240C: 199/2.5)',
                                    lo=1e-3, hi=1e6)
@@ -188,13 +195,16 @@ def camera_pose(cfg: OdometryConfig, h: float, v: float, r: float, z: float | No
     s_v = _sigma(cfg, cfg.sigma_px, confidence, 'v') * cfg.scale
     s_r = _sigma(cfg, cfg.sigma_roll_rad, confidence, 'r')
     if cfg.motion_model == 'rotation':
-        pan = math.atan(cfg.scale * h / f)
-        tilt = -math.atan(cfg.scale * v / f)
-        R = rot_y(pan) @ rot_x(tilt) @ rot_z(r)
+        if cfg.projection == 'equidistant':   # angle = x / f: d/dx = 1 / f
+            R = np.asarray(swing_twist_to_matrix(cfg.scale * h / f, -cfg.scale * v / f, r))
+            s_pan, s_tilt = s_h / f, s_v / f
+        else:                                   # angle = atan(x / f): d/dx = f / (f^2 + x^2)
+            pan = math.atan(cfg.scale * h / f)
+            tilt = -math.atan(cfg.scale * v / f)
+            R = rot_y(pan) @ rot_x(tilt) @ rot_z(r)
+            s_pan = s_h * f / (f * f + (cfg.scale * h) ** 2)
+            s_tilt = s_v * f / (f * f + (cfg.scale * v) ** 2)
         pos = np.zeros(3)
-        # d atan(x/f)/dx = f / (f^2 + x^2)
-        s_pan = s_h * f / (f * f + (cfg.scale * h) ** 2)
-        s_tilt = s_v * f / (f * f + (cfg.scale * v) ** 2)
         diag = [u, u, u, s_tilt ** 2, s_pan ** 2, s_r ** 2]
     elif cfg.motion_model == 'planar':
         d = cfg.depth_m

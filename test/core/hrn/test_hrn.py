@@ -148,7 +148,8 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
             'logpolar': {'n_theta': 32, 'n_rho': 16, 'ring_weight': ring_weight},
             'codebook': {'canvas_width': 36, 'canvas_height': 26},
             'map': {'block_iterations': 10}, 'scale': {'enabled': scale},
-            'readout': {'refine': refine}}
+            'readout': {'refine': refine},
+            'tracking': {'overlap_highpass': 1.0}}     # (3 bins on 128x96 canvases)
     if refine:      # and the other switches of the shipped configs
         base['codebook'] = {**base['codebook'], 'kernel_sigma': 0.7}   # type: ignore[dict-item]
         base['cleanup'] = {'predict_velocity': 1.0, 'iterations_per_frame': 2}
@@ -168,6 +169,8 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
             assert rel < 1e-4, (i, k, rel)
         np.testing.assert_allclose([a.h, a.v, a.r, a.z], [b.h, b.v, b.r, b.z], rtol=1e-4,
                                    atol=1e-6)
+        assert (a.map_updated, a.state) == (b.map_updated, b.state), i
+        assert a.quality == pytest.approx(b.quality, abs=1e-4), i
         updated += a.map_updated
     per_frame = fast.cfg.cleanup.iterations_per_frame      # blocked for 10 iterations
     assert updated == 40 - 10 // per_frame

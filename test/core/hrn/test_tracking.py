@@ -144,3 +144,96 @@ def test_spiking_backend_shares_the_quality_and_state() -> None:
 def test_tracking_config_needs_ordered_thresholds() -> None:
     with pytest.raises(ConfigError):
         TrackingConfig(degrade=0.7, recover=0.6)
+
+
+def _hot_pixel_frames(rng: np.random.Generator, n: int) -> list[np.ndarray]:
+    """A still camera with hot pixels: the same few pixels on in every frame, plus noise."""
+    hot = np.zeros((72, 96), np.uint8)
+    hot[rng.integers(0, 72, 25), rng.integers(0, 96, 25)] = 1
+    out = []
+    for _ in range(n):
+        f = hot.copy()
+        f[rng.random((72, 96)) < 0.003] = 1
+        out.append(f)
+    return out
+
+
+@pytest.mark.parametrize('hold', [True, False])
+def test_hot_pixel_frames_do_not_move_the_track(hold: bool) -> None:
+    """Poor frames keep the predicted pose (tracking.hold_gain); without the hold the roll of
+    the same frames runs away, so the scenario does test the hold."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'tracking': {'relocalise': False, 'hold_gain': 0.15 if hold else -1.0}})
+    poses = clean(150)
+    run(hrn, scene, poses, rng)
+    last = poses[-1]
+    out = [hrn.step(f, (150 + i) * 5_000_000) for i, f in enumerate(_hot_pixel_frames(rng, 20))]
+    assert all(e.state != 'tracking' for e in out[2:])          # flagged either way
+    roll_dev = max(abs(e.r - last[2]) for e in out)
+    shift_dev = max(max(abs(e.h - last[0]), abs(e.v - last[1])) for e in out)
+    if not hold:
+        assert roll_dev > np.deg2rad(10.0) or shift_dev > 5.0
+        return
+    assert roll_dev < np.deg2rad(2.0) and shift_dev < 1.0, (roll_dev, shift_dev)
+    assert hrn.held_frames >= 15
+    back = run(hrn, scene, np.repeat(last[None], 10, axis=0), rng, t0=170)
+    assert back[-1].state == 'tracking'
+    assert abs(back[-1].r - last[2]) < np.deg2rad(1.0) and abs(back[-1].h - last[0]) < 0.5
+
+
+def test_a_split_state_has_low_quality() -> None:
+    """The sharpness term: the lowest h/v/r peak similarity, between sharp_floor and
+    sharp_full, caps the quality."""
+    hrn = make()
+    tc = hrn.cfg.tracking
+    assert hrn._sharpness({'h': 0.9, 'v': 0.95, 'r': 0.8}) == 1.0
+    assert hrn._sharpness({'h': 0.9, 'v': 0.95, 'r': tc.sharp_floor}) == 0.0
+    mid = 0.5 * (tc.sharp_floor + tc.sharp_full)
+    assert hrn._sharpness({'h': mid, 'v': 0.95, 'r': 0.9}) == pytest.approx(0.5)
+    assert hrn._sharpness({'h': 0.9, 'v': 0.3, 'r': 0.9}) < tc.degrade
+    off = make({'tracking': {'sharp_full': 0.0}})
+    assert off._sharpness({'h': 0.1, 'v': 0.1, 'r': 0.1}) == 1.0
+
+
+def test_a_roll_spread_over_many_poses_is_flagged() -> None:
+    """A roll state spread over 16 rolls (the true one only slightly ahead, as in a track
+    that has lost the roll of sparse or smeared frames) reads out the true roll, so the
+    overlap looks fine, but its low peak turns the track degraded (the sharpness term)."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'tracking': {'relocalise': False, 'hold_gain': -1.0},
+                'cleanup': {**BASE['cleanup'], 'gamma': 0.0}})     # the states stay put
+    poses = np.zeros((40, 4))
+    est = run(hrn, scene, poses, rng)
+    assert est[-1].state == 'tracking'
+    eng = hrn._engine
+    r = eng.state['r']
+    n = len(r)
+    phases = eng.books['r'].phases
+    mix = 1.2 * r + sum(r * np.exp(1j * phases * (k * n // 16)) for k in range(1, 16))
+    eng.state['r'] = mix / np.abs(mix).mean()
+    out = run(hrn, scene, poses[:3], rng, t0=40)
+    assert abs(out[0].r) < np.deg2rad(1.0)                # the readout is still right
+    assert hrn.overlap > 0.5 * hrn._ref                   # and so is the overlap
+    assert out[0].confidence['r'] < 0.35
+    assert out[0].state == 'degraded' and out[0].quality < hrn.cfg.tracking.degrade
+
+
+def test_the_overlap_ignores_the_frame_window() -> None:
+    """Two unrelated dense textures in the same window: the DC-free overlap is high (the
+    window's low frequencies), the high-passed one is not; a frame with itself gives 1."""
+    from hrn_vo_ros.core.hrn.shared import highpass_weights, spectral_overlap, weighted_overlap
+    rng = np.random.default_rng(3)
+    a, b = np.zeros((96, 128)), np.zeros((96, 128))
+    a[12:84, 16:112] = rng.random((72, 96)) < 0.3
+    b[12:84, 16:112] = rng.random((72, 96)) < 0.3
+    fa, fb = np.fft.fft2(a), np.fft.fft2(b)
+    w = highpass_weights(96, 128, 3.0)
+    assert w[0, 0] == 0.0 and w[48, 64] == pytest.approx(1.0)
+    assert spectral_overlap(fa, fb) > 0.15
+    assert abs(weighted_overlap(fa, fb, w)) < 0.05
+    assert weighted_overlap(fa, fa, w) == pytest.approx(1.0)
+    assert weighted_overlap(fa, np.zeros_like(fa), w) == 0.0
+    w0 = highpass_weights(96, 128, 0.0)
+    assert weighted_overlap(fa, fb, w0) == pytest.approx(spectral_overlap(fa, fb))

@@ -56,6 +56,28 @@ def test_rotation_model_in_the_camera_frame() -> None:
     np.testing.assert_allclose(pose.quat, q_axis((0, 1, 0), 0.1), atol=1e-12)
 
 
+@pytest.mark.parametrize(('h', 'v', 'axis', 'angle'), [
+    (F * 0.3, 0.0, (0, 1, 0), 0.3),                          # pan: angle = h / f (no atan)
+    (0.0, F * 0.2, (1, 0, 0), -0.2),                         # tilt: image down = -x rotation
+    (F * 0.4, F * 0.4, (-0.5 ** 0.5, 0.5 ** 0.5, 0), 0.4 * 2 ** 0.5),  # one swing, not two
+])
+def test_equidistant_rotation_is_one_swing_of_the_image_distance(
+        h: float, v: float, axis: tuple[float, float, float], angle: float) -> None:
+    """An equidistant frame shifted by (h, v) saw the optical axis swing by |(h, v)| / f about
+    (-v, h, 0) (camera frame: x right, y down): hand-computed axis-angle quaternions."""
+    cfg = OdometryConfig(focal_length_px=F, child_frame='camera', projection='equidistant')
+    pose = readout_to_pose(cfg, 0, h, v, 0.0, None, FULL)
+    np.testing.assert_allclose(pose.quat, q_axis(axis, angle), atol=1e-12)
+    # with a roll the twist comes first: R = swing @ Rz(r)
+    rolled = readout_to_pose(cfg, 0, h, v, 0.25, None, FULL)
+    q_s, q_r = q_axis(axis, angle), q_axis((0, 0, 1), 0.25)
+    x1, y1, z1, w1 = q_s
+    x2, y2, z2, w2 = q_r
+    want = np.array([w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2, w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2])
+    np.testing.assert_allclose(rolled.quat, want * np.sign(want[3]), atol=1e-12)
+
+
 def test_translation_model_and_covariance() -> None:
     cfg = OdometryConfig(motion_model='translation', focal_length_px=F, depth_m=2.0,
                          sigma_px=0.5, unobserved_variance=99.0)
