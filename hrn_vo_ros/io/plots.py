@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -116,6 +117,19 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
     top = np.percentile(s.err, 99) if len(s.err) else 1.0
     ax.set_ylim(0, max(top * 1.2, 1e-6))
 
+    _side_panels(fig, gs, result)
+    if title is None:
+        head = next(iter(result.metrics.items()), ('', float('nan')))
+        title = f'{result.kind}: {head[0]} = {head[1]:.3g}'
+    fig.suptitle(title, fontsize=12)
+    fig.savefig(out, bbox_inches='tight', format=fmt)
+    plt.close(fig)
+    return out
+
+
+def _side_panels(fig: Any, gs: Any, result: EvalResult) -> None:
+    """The top view of both trajectories and the protocol's figures beside the time series."""
+    s = result.series
     right = gs[:, 1].subgridspec(2, 1, height_ratios=(3.0, 1.2), hspace=0.32)
     top_ax = fig.add_subplot(right[0])
     top_ax.plot(s.gt[:, 0], s.gt[:, 1], color=_GT, lw=1.2, label='ground truth')
@@ -136,10 +150,3 @@ def plot_evaluation(result: EvalResult, out: Path | str, *, title: str | None = 
         lines.append(f'{k} = {v:.4g}')
     txt_ax.text(0, 1, '\n'.join(lines[:9]), va='top', ha='left', fontsize=8.5,
                 family='monospace')
-    if title is None:
-        head = next(iter(result.metrics.items()), ('', float('nan')))
-        title = f'{result.kind}: {head[0]} = {head[1]:.3g}'
-    fig.suptitle(title, fontsize=12)
-    fig.savefig(out, bbox_inches='tight', format=fmt)
-    plt.close(fig)
-    return out

@@ -247,20 +247,59 @@ class HRN:
             TrackingError: for a frame of the wrong shape or with non-finite values.
         """
         c = self.cfg
-        img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'resonator')
-        if not usable:
+        prepared = self._prepare(image)
+        if prepared is None:
             return self._repeat(t_ns)
-        if self._sphere is not None and self._started:   # the last pose's non-rigid part
-            img = self._sphere.warp(img, self._out['h'], self._out['v'], self._out['r'])
-            if not img.any():             # every event warped off the frame: nothing to use
-                return self._repeat(t_ns)
-        n_on = int(np.count_nonzero(img))
+        img, n_on = prepared
         canvas = self._place(img)
         eng = self._engine
         first = not self._started
         if first:
             eng.start(canvas, self.rng)
             self._started = True
+        predicted, held, shift = self._predict(first, gyro_delta)
+        # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
+        prior = ({k: x.copy() for k, x in eng.state.items()} if c.tracking.enabled
+                 and c.tracking.hold_gain > -1.0 and not first else None)
+        prior_point = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
+        S = eng.encode(canvas)
+        sims, point, spread, peak = self._resonate(S)
+        rejected = False
+        if predicted is not None:
+            sims, point, rejected = self._gate_imu(point, predicted, held, sims)
+        learn = c.map.learn and self.iteration > c.map.block_iterations and not rejected
+        target: Any = None
+        if c.tracking.enabled and not first:
+            point, spread, peak, sims, target = self._assess(
+                S, point, spread, peak, sims, prior, prior_point, n_on, rejected)
+        self._point = point
+        self._follow(point, n_on)
+        updated = False
+        if learn and (not c.tracking.enabled or (self.state != 'lost'
+                                                 and self.quality >= c.tracking.map_quality)):
+            eng.update_map(S, point, c.map.mu1, c.map.mu2, target)
+            updated = True
+        return self._emit(t_ns, point, spread, peak, sims, updated)
+
+    # -- the steps of a frame ---------------------------------------------------------------
+
+    def _prepare(self, image: NDArray[Any]) -> tuple[NDArray[np.float64], int] | None:
+        """The checked (and sphere-warped) frame and its on-pixel count; None: skip it."""
+        c = self.cfg
+        img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'resonator')
+        if not usable:
+            return None
+        if self._sphere is not None and self._started:   # the last pose's non-rigid part
+            img = self._sphere.warp(img, self._out['h'], self._out['v'], self._out['r'])
+            if not img.any():             # every event warped off the frame: nothing to use
+                return None
+        return img, int(np.count_nonzero(img))
+
+    def _predict(self, first: bool, gyro_delta: NDArray[Any] | None
+                 ) -> tuple[dict[str, float] | None, dict[str, Any], dict[str, float]]:
+        """Apply the gyro (else the velocity) prediction: (gated prediction, states before it,
+        the shift applied)."""
+        c, eng = self.cfg, self._engine
         predicted: dict[str, float] | None = None
         held: dict[str, Any] = {}
         shift: dict[str, float] = {}
@@ -271,11 +310,12 @@ class HRN:
                 held = {k: x.copy() for k, x in eng.state.items()}
         elif c.cleanup.predict_velocity > 0.0:         # no-op until two valid frames
             shift = self._predict_velocity()
-        # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
-        prior = ({k: x.copy() for k, x in eng.state.items()} if c.tracking.enabled
-                 and c.tracking.hold_gain > -1.0 and not first else None)
-        prior_point = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
-        S = eng.encode(canvas)
+        return predicted, held, shift
+
+    def _resonate(self, S: Any) -> tuple[dict[str, Real], dict[str, float], dict[str, float],
+                                         dict[str, float]]:
+        """The frame's resonator iterations and their readout: (sims, point, spread, peak)."""
+        c, eng = self.cfg, self._engine
         for _ in range(c.cleanup.iterations_per_frame):
             eng.iterate(S)
             self.iteration += 1
@@ -284,45 +324,62 @@ class HRN:
         if c.readout.source == 'drive' and all(k in drive for k in sims):
             sims = {k: drive[k] for k in sims}
         point, spread, peak = self._readout(sims)
-        rejected = False
-        if predicted is not None:
-            self.innovation_deg = self._innovation_deg(point, predicted)
-            if self.innovation_deg > c.imu.gate_deg:
-                rejected = True
-                self.rejected_frames += 1
-                eng.state.update(held)
+        return sims, point, spread, peak
+
+    def _gate_imu(self, point: dict[str, float], predicted: dict[str, float],
+                  held: dict[str, Any], sims: dict[str, Real]
+                  ) -> tuple[dict[str, Real], dict[str, float], bool]:
+        """The innovation gate: a readout too far from the gyro's prediction is replaced by the
+        prediction (states restored). Returns (sims, point, rejected)."""
+        c, eng = self.cfg, self._engine
+        self.innovation_deg = self._innovation_deg(point, predicted)
+        if self.innovation_deg <= c.imu.gate_deg:
+            return sims, point, False
+        self.rejected_frames += 1
+        eng.state.update(held)
+        sims = eng.similarities()
+        point = {k: eng.books[k].wrap(predicted[k]) for k in point}
+        return sims, point, True
+
+    def _assess(self, S: Any, point: dict[str, float], spread: dict[str, float],
+                peak: dict[str, float], sims: dict[str, Real], prior: dict[str, Any] | None,
+                prior_point: dict[str, float], n_on: int, rejected: bool
+                ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
+                           dict[str, Real], Any]:
+        """Quality, the hold of poor sparse frames, the state, and re-localisation when lost.
+        Returns (point, spread, peak, sims, map target)."""
+        c, eng = self.cfg, self._engine
+        target = eng.map_target(S, point)
+        o1 = eng.overlap(target)
+        q = self._quality(o1)
+        weak = self._density is not None and n_on < c.tracking.hold_density * self._density
+        if prior is not None and weak and not rejected \
+                and min(q, self._sharpness(peak)) < c.tracking.degrade:
+            # a poor, sparse frame moves the states only if that clearly improves the
+            # match over the prediction: else they keep it (hot pixels, noise, a pause)
+            books = eng.books
+            pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
+            t0 = eng.map_target(S, pp)
+            o0 = eng.overlap(t0)
+            q0 = self._quality(o0)
+            if q - q0 < c.tracking.hold_gain:
+                eng.state.update(prior)
                 sims = eng.similarities()
-                point = {k: self._engine.books[k].wrap(predicted[k]) for k in point}
-        learn = c.map.learn and self.iteration > c.map.block_iterations and not rejected
-        target: Any = None
-        if c.tracking.enabled and not first:
-            target = eng.map_target(S, point)
-            o1 = eng.overlap(target)
-            q = self._quality(o1)
-            weak = self._density is not None and n_on < c.tracking.hold_density * self._density
-            if prior is not None and weak and not rejected \
-                    and min(q, self._sharpness(peak)) < c.tracking.degrade:
-                # a poor, sparse frame moves the states only if that clearly improves the
-                # match over the prediction: else they keep it (hot pixels, noise, a pause)
-                books = self._engine.books
-                pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
-                t0 = eng.map_target(S, pp)
-                o0 = eng.overlap(t0)
-                q0 = self._quality(o0)
-                if q - q0 < c.tracking.hold_gain:
-                    eng.state.update(prior)
-                    sims = eng.similarities()
-                    peak = {k: float(np.max(x)) for k, x in sims.items()}
-                    point, target, q = pp, t0, q0
-                    self.held_frames += 1
-                else:
-                    self.overlap = o1
-            self._track_state(min(q, self._sharpness(peak)))
-            if self.state == 'lost' and c.tracking.relocalise:
-                found = self._relocalise(S, point)
-                if found is not None:
-                    point, spread, peak, sims, target = found
-        self._point = point
+                peak = {k: float(np.max(x)) for k, x in sims.items()}
+                point, target, q = pp, t0, q0
+                self.held_frames += 1
+            else:
+                self.overlap = o1
+        self._track_state(min(q, self._sharpness(peak)))
+        if self.state == 'lost' and c.tracking.relocalise:
+            found = self._relocalise(S, point)
+            if found is not None:
+                point, spread, peak, sims, target = found
+        return point, spread, peak, sims, target
+
+    def _follow(self, point: dict[str, float], n_on: int) -> None:
+        """Book-keeping of tracked frames: the on-pixel density and the velocity (gated)."""
+        c = self.cfg
         tracking = self.state == 'tracking'
         if tracking:        # running mean of the tracked frames' on-pixel counts
             d = self._density
@@ -332,12 +389,6 @@ class HRN:
                 self._track_velocity(point)
             else:       # gate the prediction: no velocity from frames of low quality
                 self._prev = self._velocity = None
-        updated = False
-        if learn and (not c.tracking.enabled or (self.state != 'lost'
-                                                 and self.quality >= c.tracking.map_quality)):
-            eng.update_map(S, point, c.map.mu1, c.map.mu2, target)
-            updated = True
-        return self._emit(t_ns, point, spread, peak, sims, updated)
 
     # -- tracking quality, state, re-localisation -------------------------------------------
 
