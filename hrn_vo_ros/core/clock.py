@@ -29,8 +29,11 @@ of a few events) is a ``time_backwards`` packet: dropped alone, state kept. Equa
 from __future__ import annotations
 
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass
 import enum
+import math
+import time
 
 from hrn_vo_ros.core.configbase import param, validate
 
@@ -192,3 +195,69 @@ class StampChecker:
             return Verdict.BACKWARDS
         self._last = t_ns
         return Verdict.OK
+
+
+class Recent:
+    """When something last happened (wall time), with a detail, and whether that is recent.
+
+    Diagnostics stay WARN or ERROR for a window after an event (a clock reset, a dropped frame)
+    and are OK again once it has passed.
+
+    Args:
+        now: The wall clock in seconds (``time.monotonic``; injectable for tests).
+    """
+
+    def __init__(self, now: Callable[[], float] = time.monotonic) -> None:
+        self._now = now
+        self.at = -math.inf
+        self.detail = ''
+
+    def mark(self, detail: str = '') -> None:
+        """It happened now."""
+        self.at = self._now()
+        self.detail = detail
+
+    def within(self, window_s: float) -> bool:
+        """Whether it happened at most ``window_s`` seconds ago."""
+        return self._now() - self.at <= window_s
+
+
+class RateLimit:
+    """At most ``rate_hz`` events per second of wall time (the first one at once).
+
+    Args:
+        now: The wall clock in seconds (``time.monotonic``; injectable for tests).
+    """
+
+    def __init__(self, now: Callable[[], float] = time.monotonic) -> None:
+        self._now = now
+        self.last = 0.0
+
+    def due(self, rate_hz: float) -> bool:
+        """Whether an event may happen now (then it is taken as happened); never at 0 Hz."""
+        now = self._now()
+        if rate_hz <= 0.0 or now - self.last < 1.0 / rate_hz:
+            return False
+        self.last = now
+        return True
+
+
+class Throttle:
+    """At most one event per ``period_s`` of wall time per key (the first one at once).
+
+    Args:
+        now: The wall clock in seconds (``time.monotonic``; injectable for tests).
+    """
+
+    def __init__(self, now: Callable[[], float] = time.monotonic) -> None:
+        self._now = now
+        self._last: dict[str, float] = {}
+
+    def due(self, key: str, period_s: float) -> bool:
+        """Whether an event of ``key`` may happen now (then it is taken as happened)."""
+        now = self._now()
+        last = self._last.get(key)
+        if last is not None and now - last < period_s:
+            return False
+        self._last[key] = now
+        return True

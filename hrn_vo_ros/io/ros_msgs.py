@@ -26,7 +26,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 import importlib
 import math
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -40,9 +40,13 @@ from tf2_msgs.msg import TFMessage
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.core.odometry.odometry import OdomPose, quat_from_matrix, Twist
+from hrn_vo_ros.core.odometry.publish import child_frame_id, StaticFrame
 from hrn_vo_ros.errors import DecodeError
 from hrn_vo_ros.io.estimates import STATES as READOUT_STATES
 from hrn_vo_ros.io.eventpacket import PacketDecoder
+
+if TYPE_CHECKING:
+    from hrn_vo_ros.core.live import Step
 
 LEVELS = {'ok': DiagnosticStatus.OK, 'warn': DiagnosticStatus.WARN,
           'error': DiagnosticStatus.ERROR, 'stale': DiagnosticStatus.STALE}
@@ -73,6 +77,38 @@ def events_from_packet(msg: Any, decoder: PacketDecoder) -> EventArray:
     """
     return decoder.decode(str(msg.encoding), np.frombuffer(msg.events, np.uint8),
                           time_base=int(msg.time_base), is_bigendian=bool(msg.is_bigendian))
+
+
+class PacketReader:
+    """The ``event_camera_msgs/EventPacket`` messages of one topic, with its stateful decoder."""
+
+    def __init__(self) -> None:
+        self.decoder = PacketDecoder()
+
+    def read(self, msg: Any) -> tuple[int, EventArray]:
+        """``(header stamp ns, events)`` of a packet.
+
+        Raises:
+            DecodeError, ValueError, TypeError, OverflowError: on a malformed packet
+                (``core.events.stream.DECODE_ERRORS``).
+        """
+        ev = events_from_packet(msg, self.decoder)
+        return stamp_to_ns(msg.header.stamp), ev
+
+    def reread(self, msg: Any) -> EventArray | None:
+        """Reset the decoder's stream state (a clock reset) and decode ``msg`` again from it.
+
+        Returns None for an encoding without stream state (the first decoding stands).
+        """
+        self.decoder.reset()
+        if str(msg.encoding) != 'evt3':
+            return None
+        return events_from_packet(msg, self.decoder)
+
+    @staticmethod
+    def size(msg: Any) -> tuple[int, int]:
+        """The sensor width and height a packet gives (0 when it gives none)."""
+        return int(msg.width), int(msg.height)
 
 
 def frame_to_image(image: NDArray[np.uint8], t_ns: int, frame_id: str) -> Image:
@@ -233,6 +269,12 @@ def static_transform(t_ns: int, frame_id: str, child_frame_id: str,
     return tf
 
 
+def static_transforms(t_ns: int, frames: Sequence[StaticFrame]) -> TFMessage:
+    """The ``/tf_static`` message of ``(parent, child, rotation, translation)`` transforms."""
+    return TFMessage(transforms=[static_transform(t_ns, parent, child, R, t)
+                                 for parent, child, R, t in frames])
+
+
 def pose_to_tf(pose: OdomPose, frame_id: str, child_frame_id: str) -> TFMessage:
     """A ``tf2_msgs/TFMessage`` with the one transform ``frame_id`` → ``child_frame_id``."""
     tf = TransformStamped()
@@ -281,6 +323,22 @@ def readout_to_joint_state(t_ns: int, values: Mapping[str, float],
     msg.position = position
     msg.effort = effort
     return msg
+
+
+def step_messages(step: Step, frame_id: str, base_frame_id: str, camera_frame_id: str, *,
+                  with_tf: bool) -> list[JointState | PoseStamped | Odometry | TFMessage]:
+    """The readout, pose, odometry and (``with_tf``) tf messages of one processed frame.
+
+    The child frame is ``base_frame_id`` or ``camera_frame_id`` by ``odometry.child_frame``.
+    """
+    est, out = step.estimate, step.out
+    child = child_frame_id(step.odometry, base_frame_id, camera_frame_id)
+    readout = readout_to_joint_state(step.t_ns, out.values, est.confidence,
+                                     quality=est.quality, state=est.state)
+    odom = pose_to_odometry(out.pose, frame_id, child, step.odometry.unobserved_variance,
+                            out.twist)
+    msgs = [readout, pose_to_pose_stamped(out.pose, frame_id), odom]
+    return (msgs + [pose_to_tf(out.pose, frame_id, child)]) if with_tf else msgs
 
 
 def joint_state_to_readout(msg: Any) -> tuple[int, dict[str, float], dict[str, float]]:

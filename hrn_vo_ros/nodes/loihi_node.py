@@ -39,13 +39,13 @@ class LoihiNode(ResonatorNode):
         self.get_logger().info(f'spiking backend: {sc.precision}, T = {sc.steps_per_cycle} '
                                f'steps/cycle, {sc.weight_bits}-bit weights, {sc.synapse} synapses')
 
-    def _publish_images(self, t_ns: int) -> None:
-        before = self._last_image_wall
-        super()._publish_images(t_ns)
-        if self._last_image_wall != before and isinstance(self._hrn, SpikingDiagnostics):
+    def _publish_images(self, t_ns: int) -> bool:
+        published = super()._publish_images(t_ns)
+        if published and isinstance(self._hrn, SpikingDiagnostics):
             raster = self._hrn.raster().astype(float)
             frame = self._opts.config.camera_frame_id
             self._pub_raster.publish(ros_msgs.float_image_to_mono8(raster, t_ns, frame))
+        return published
 
     def _extra_diagnostics(self) -> list[tuple[str, object]]:
         if not isinstance(self._hrn, SpikingDiagnostics):

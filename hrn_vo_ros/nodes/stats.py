@@ -11,8 +11,9 @@ import time
 
 import numpy as np
 
-from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import PacketizerConfig
+from hrn_vo_ros.core.events.stream import packet_problem
+
+__all__ = ['NodeStats', 'packet_problem']
 
 
 class NodeStats:
@@ -87,18 +88,3 @@ class NodeStats:
         med, p99 = self.processing_ms()
         out += [('processing_ms_median', f'{med:.3f}'), ('processing_ms_p99', f'{p99:.3f}')]
         return out
-
-
-def packet_problem(ev: EventArray, cfg: PacketizerConfig, last_t_ns: int | None) -> str | None:
-    """Why a decoded event packet cannot be binned, as a short kind, or None if it can.
-
-    Kinds: ``empty`` (no events), ``out_of_sensor`` (a coordinate outside the configured sensor
-    size), ``time_backwards`` (starts before the previous packet ended or is unsorted inside).
-    """
-    if len(ev) == 0:
-        return 'empty'
-    if int(ev.x.max()) >= cfg.sensor_width or int(ev.y.max()) >= cfg.sensor_height:
-        return 'out_of_sensor'
-    if (last_t_ns is not None and int(ev.t[0]) < last_t_ns) or bool(np.any(np.diff(ev.t) < 0)):
-        return 'time_backwards'
-    return None

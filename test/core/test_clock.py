@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hrn_vo_ros.core.clock import ClockConfig, StampChecker, StreamClock, Verdict
+from hrn_vo_ros.core.clock import (
+    ClockConfig,
+    RateLimit,
+    Recent,
+    StampChecker,
+    StreamClock,
+    Throttle,
+    Verdict,
+)
 from hrn_vo_ros.errors import ConfigError
 
 MS = 1_000_000
@@ -121,3 +129,36 @@ def test_stamp_checker() -> None:
 def test_config_is_validated() -> None:
     with pytest.raises(ConfigError):
         ClockConfig(stamps='gps')
+
+
+def test_recent_marks_an_event_for_a_window() -> None:
+    now = [100.0]
+    recent = Recent(lambda: now[0])
+    assert not recent.within(1e9)                   # never happened
+    recent.mark('sensor_backwards')
+    assert recent.within(0.0) and recent.detail == 'sensor_backwards'
+    now[0] += 10.0
+    assert recent.within(10.0) and not recent.within(9.99)
+
+
+def test_rate_limit_lets_the_first_through_then_one_per_period() -> None:
+    now = [0.0]
+    rate = RateLimit(lambda: now[0])
+    assert not rate.due(0.0)                        # 0 Hz: never
+    now[0] = 5.0
+    assert rate.due(2.0) and not rate.due(2.0)
+    now[0] = 5.49
+    assert not rate.due(2.0)
+    now[0] = 5.5
+    assert rate.due(2.0)
+
+
+def test_throttle_is_per_key() -> None:
+    now = [0.0]
+    throttle = Throttle(lambda: now[0])
+    assert throttle.due('a', 5.0) and not throttle.due('a', 5.0)
+    assert throttle.due('b', 5.0)                   # another kind is not held back
+    now[0] = 4.9
+    assert not throttle.due('a', 5.0)
+    now[0] = 5.0
+    assert throttle.due('a', 5.0) and throttle.due('c', 0.0) and throttle.due('c', 0.0)

@@ -135,6 +135,15 @@ def start_pipeline(graph: Graph, probe: Probe, which: tuple[str, ...] = (
     assert probe.wait(lambda: probe.value('packetizer_node', 'frames_subscribers') >= 2
                       and probe.pub.get_subscription_count() > 0  # type: ignore[attr-defined]
                       and probe.node.count_publishers(READOUT_TOPIC) > 0, 60.0), probe.diags
+    # The probe seeing the resonator's readout publisher does not mean the resonator has
+    # matched the probe's subscription yet (discovery runs both ways): warm up with good
+    # packets until a readout arrives, so that the faults below start from a connected graph.
+    end = time.monotonic() + 60.0
+    while probe.readouts == 0 and time.monotonic() < end:
+        for _ in range(3):
+            probe.send()
+        probe.wait(lambda: probe.readouts > 0, 2.0)
+    assert probe.readouts > 0, ('no readout within 60 s of connecting', probe.diags)
     graph.check_alive()
 
 

@@ -10,6 +10,8 @@ import pytest
 from sensor_msgs.msg import CameraInfo, Imu
 
 from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.live import Step
+from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.odometry.odometry import (
     mount_transform,
     OdometryConfig,
@@ -17,6 +19,7 @@ from hrn_vo_ros.core.odometry.odometry import (
     readout_to_pose,
     Twist,
 )
+from hrn_vo_ros.core.odometry.publish import OdometryComposer, static_frames
 from hrn_vo_ros.errors import DecodeError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.eventpacket import encode_evt3, encode_mono, PacketDecoder
@@ -170,3 +173,49 @@ def test_packet_decoder_reset_restarts_the_evt3_time(rng: np.random.Generator) -
     dec.reset()
     fresh = ros_msgs.events_from_packet(evt3(1_000_000), dec)
     assert int(fresh.t[0]) == 1_000_000_000 and len(fresh) == 50
+
+
+def test_packet_reader_reads_the_stamp_and_rereads_evt3_from_a_fresh_state(
+        rng: np.random.Generator) -> None:
+    def evt3(t0_us: int) -> EventPacket:
+        t = (t0_us + np.arange(50) * 10) * 1000
+        ev = EventArray.from_arrays(t, rng.integers(0, 240, 50), rng.integers(0, 180, 50),
+                                    np.zeros(50, np.uint8))
+        msg = EventPacket(encoding='evt3', width=240, height=180,
+                          events=encode_evt3(ev).tobytes())
+        msg.header.stamp = ros_msgs.ns_to_stamp(5 * 10**9 + 7)
+        return msg
+
+    reader = ros_msgs.PacketReader()
+    header_ns, ev = reader.read(evt3(9_000_000))
+    assert header_ns == 5 * 10**9 + 7 and int(ev.t[0]) == 9_000_000_000
+    restart = evt3(1_000_000)
+    assert int(reader.read(restart)[1].t[0]) == (2**24 + 1_000_000) * 1000   # a rollover
+    again = reader.reread(restart)
+    assert again is not None and int(again.t[0]) == 1_000_000_000
+    assert reader.size(restart) == (240, 180)
+    mono = EventPacket(encoding='mono', events=b'')
+    assert reader.reread(mono) is None
+
+
+def test_static_transforms_and_step_messages() -> None:
+    odo = OdometryConfig(focal_length_px=80.0)
+    msg = ros_msgs.static_transforms(3, static_frames(
+        odo, tuple(float(v) for v in np.eye(3).ravel()), base='b', camera='c', imu='i'))
+    assert [(t.header.frame_id, t.child_frame_id) for t in msg.transforms] == [('b', 'c'),
+                                                                            ('c', 'i')]
+    est = Estimate(10**9, 2.0, 0.0, 0.0, 0.0, confidence={'h': 1.0, 'v': 1.0, 'r': 1.0},
+                   quality=0.5, state='degraded')
+    out = OdometryComposer().compose(10**9, est, odo, with_z=False, lost_variance=1e6,
+                                     min_quality=0.05)
+    step = Step(10**9, est, odo, out, 0.0)
+    readout, pose, odom = ros_msgs.step_messages(step, 'odom', 'base', 'cam', with_tf=False)
+    assert list(readout.name) == ['h', 'v', 'r', 'quality', 'state']
+    assert pose.header.frame_id == 'odom' and odom.child_frame_id == 'base'
+    np.testing.assert_allclose(np.reshape(odom.pose.covariance, (6, 6)), out.pose.covariance)
+    msgs = ros_msgs.step_messages(step, 'odom', 'base', 'cam', with_tf=True)
+    assert len(msgs) == 4 and msgs[3].transforms[0].child_frame_id == 'base'
+    cam = OdometryConfig(focal_length_px=80.0, child_frame='camera')
+    odom = ros_msgs.step_messages(Step(10**9, est, cam, out, 0.0), 'odom', 'base', 'cam',
+                                  with_tf=False)[2]
+    assert odom.child_frame_id == 'cam'

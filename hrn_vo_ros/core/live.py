@@ -1,0 +1,224 @@
+"""Frames and IMU samples of a running graph → estimates to publish: ``resonator_node``'s logic.
+
+:class:`LiveOdometry` holds what the node keeps between messages: the odometry pipeline
+(:class:`~hrn_vo_ros.core.pipeline.OdometryPipeline`), the frames waiting for gyro samples
+(:class:`~hrn_vo_ros.core.odometry.publish.GyroGate`), the pose/twist composer, the stamp checks
+of both streams and the diagnostics windows. A frame or IMU stamp going back by more than the
+tolerance restarts that stream's time state (waiting frames processed, a new gyro integrator,
+no twist across; counted as ``clock_resets_<stream>``).
+
+Each call yields, lazily and in order, :class:`~hrn_vo_ros.core.events.stream.Note` entries
+(rejects and warnings for the caller to count and log) and :class:`Step` results (one
+processed frame for the caller to publish); a frame is processed only when the caller asks for
+the next item, so the caller publishes each before the next one is computed.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hrn_vo_ros.core.clock import Recent, StampChecker, Verdict
+from hrn_vo_ros.core.events.stream import Note
+from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
+from hrn_vo_ros.core.hrn.config import ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.odometry.estimate import Estimate
+from hrn_vo_ros.core.odometry.odometry import OdometryConfig
+from hrn_vo_ros.core.odometry.publish import (
+    Composed,
+    GyroGate,
+    imu_frame_warning,
+    OdometryComposer,
+    size_mismatch_text,
+    static_frames,
+    StaticFrame,
+)
+from hrn_vo_ros.core.pipeline import OdometryPipeline
+from hrn_vo_ros.errors import HrnVoError
+
+
+@dataclass(frozen=True, slots=True)
+class LiveSettings:
+    """The run-time settings a call reads (they may change between messages)."""
+
+    width: int
+    height: int
+    imu: bool                      # frames wait for the gyro (``imu.enabled``)
+    with_z: bool                   # the resonator reads out the log scale z
+    odometry: OdometryConfig
+    focal_px: float
+    lost_variance: float
+    min_quality: float
+    imu_timeout_s: float
+    camera_from_imu: tuple[float, ...]   # 9 values, row-major (``imu.camera_from_imu``)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Step:
+    """One processed frame: its estimate, the odometry settings used, what to publish."""
+
+    t_ns: int
+    estimate: Estimate
+    odometry: OdometryConfig
+    out: Composed
+    seconds: float                 # processing time so far (the pipeline step)
+
+
+Item = Note | Step
+
+
+def make_resonator(cfg: ResonatorConfig, seed: int, backend: BackendConfig
+                   ) -> tuple[ResonatorBackend, str | None]:
+    """The resonator of a node for ``cfg`` (seeded) and a warning text or None.
+
+    Without a focal length it has no sphere correction (a node has no calibration; a live
+    camera should still give odometry): the warning says so.
+    """
+    cfg, why = without_unset_sphere(cfg)
+    return make_backend(cfg, rng=np.random.default_rng(seed), backend=backend), why
+
+
+class LiveOdometry:
+    """The odometry of a live frame and IMU stream (see the module docstring).
+
+    Args:
+        estimator: The resonator (the pipeline's estimator; replaced by ``reconfigured``).
+        gate: The frames waiting for gyro samples (its gyro is the pipeline's).
+        tolerance_ns: Stamps going back by more than this restart the time state.
+        counts: Where counters go (a new Counter when None).
+        now: The wall clock (``time.monotonic``; injectable for tests).
+    """
+
+    def __init__(self, estimator: ResonatorBackend, gate: GyroGate, *, tolerance_ns: int,
+                 counts: Counter[str] | None = None,
+                 now: Callable[[], float] = time.monotonic) -> None:
+        self.pipeline = OdometryPipeline(estimator, gyro=gate.gyro, record=False)
+        self.gate = gate
+        self.composer = OdometryComposer()
+        self.counts: Counter[str] = Counter() if counts is None else counts
+        self.frame_clock = StampChecker(tolerance_ns)
+        self.imu_clock = StampChecker(tolerance_ns, strict=True)
+        self.last_reset = Recent(now)
+        self.size_mismatch = Recent(now)
+        self._now = now
+
+    def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings) -> Iterator[Item]:
+        """One decoded frame: checked, then processed now or when the gyro covers it."""
+        if image.shape != (s.height, s.width):
+            text = size_mismatch_text(image.shape[1], image.shape[0], s.width, s.height)
+            self.size_mismatch.mark(text)
+            yield Note('reject', 'size', text)
+            return
+        verdict = self.frame_clock.observe(t_ns)
+        if verdict is Verdict.BACKWARDS:
+            yield Note('reject', 'time_backwards', f'frame at {t_ns} ns is older than the '
+                       'previous')
+            return
+        if verdict is Verdict.RESET:
+            yield from self._restart_time('frames', s)
+        if not s.imu:
+            yield from self._process(t_ns, image, s, imu=False)
+            return
+        self.gate.add(t_ns, image, self._now())
+        yield from self._drain(s, force=False)
+
+    def imu(self, t_ns: int, gyro: NDArray[np.float64], s: LiveSettings) -> Iterator[Item]:
+        """One gyro sample (rad/s, IMU frame): stored, then the frames it completes."""
+        verdict = self.imu_clock.observe(t_ns)
+        if verdict is Verdict.BACKWARDS:
+            yield Note('reject', 'imu_time', f'IMU sample at {t_ns} ns does not increase')
+            return
+        if verdict is Verdict.RESET:
+            yield from self._restart_time('imu', s)
+        try:
+            self.gate.add_gyro(t_ns, gyro, self._now())
+        except (HrnVoError, ValueError, TypeError) as err:
+            yield Note('reject', 'imu', str(err))
+            return
+        yield from self._drain(s, force=False)
+
+    def imu_frame(self, frame_id: str, imu_frame_id: str) -> Iterator[Item]:
+        """Check an IMU message's frame against ``imu_frame_id`` (counted, throttled note)."""
+        warning = imu_frame_warning(frame_id, imu_frame_id)
+        if warning is not None:
+            self.counts['imu_frame_mismatch'] += 1
+            yield Note('warn', 'imu_frame', warning, throttled=True)
+
+    def static_frames(self, s: LiveSettings, *, base: str, camera: str,
+                      imu: str) -> tuple[list[StaticFrame], list[Note]]:
+        """The static transforms (``publish.static_frames``) with the odometry of ``s``, and
+        the focal-length note when its focal length is not the resonator's."""
+        odo, warning = self.composer.odometry(s.odometry, s.focal_px)
+        notes = [] if warning is None else [Note('warn', 'focal', warning)]
+        return static_frames(odo, s.camera_from_imu, base=base, camera=camera, imu=imu), notes
+
+    def tick(self, s: LiveSettings) -> Iterator[Item]:
+        """Periodic: when the IMU stopped (end of a bag), the waiting frames go anyway."""
+        if self.gate.stalled(self._now(), s.imu_timeout_s):
+            yield from self._drain(s, force=True)
+
+    def reconfigured(self, estimator: ResonatorBackend) -> None:
+        """A new resonator (tracking restarts: no twist across)."""
+        self.pipeline.estimator = estimator
+        self.composer.restart()
+
+    def _restart_time(self, what: str, s: LiveSettings) -> Iterator[Item]:
+        """A stream's stamps went back (restart, looped bag): clear the time state."""
+        self.counts[f'clock_resets_{what}'] += 1
+        self.last_reset.mark(what)
+        self.composer.restart()
+        yield from self._drain(s, force=True)
+        self.pipeline.gyro = self.gate.new_gyro(s.camera_from_imu)
+        yield Note('warn', 'time_reset', f'{what} stamps went back by more than '
+                   'clock_tolerance_s: time state restarted (a driver restart or a looped bag)',
+                   throttled=True)
+
+    def _drain(self, s: LiveSettings, *, force: bool) -> Iterator[Item]:
+        """Process waiting frames whose gyro increment is final (or all, when forced)."""
+        for t_ns, image in self.gate.drain(force=force):
+            yield from self._process(t_ns, image, s, imu=True)
+
+    def _process(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings, *,
+                 imu: bool) -> Iterator[Item]:
+        """One frame through the pipeline (with the gyro increment when ``imu``), composed."""
+        t0 = time.perf_counter()
+        try:
+            est = self.pipeline.step(image, t_ns, use_gyro=imu)
+        except HrnVoError as err:
+            yield Note('reject', 'tracking', str(err))
+            return
+        odo, warning = self.composer.odometry(s.odometry, s.focal_px)
+        if warning is not None:
+            yield Note('warn', 'focal', warning)
+        out = self.composer.compose(t_ns, est, odo, with_z=s.with_z,
+                                    lost_variance=s.lost_variance, min_quality=s.min_quality)
+        self.counts['estimates_out'] += 1
+        self.counts['invalid_frames'] += 0 if est.valid else 1
+        yield Step(t_ns, est, odo, out, time.perf_counter() - t0)
+
+    def diagnostic_values(self, frame_rate_hz: str, output_subscribers: int,
+                          odom_subscribers: int) -> list[tuple[str, object]]:
+        """The diagnostics key/values (with the three the caller measures)."""
+        return ([('frame_rate_hz', frame_rate_hz), ('pending_frames', len(self.gate)),
+                 ('gyro_samples', len(self.gate.gyro)),
+                 ('output_subscribers', output_subscribers),
+                 ('odom_subscribers', odom_subscribers),
+                 ('imu_rejected_frames', self.pipeline.estimator.rejected_frames)]
+                + self.composer.diagnostic_values()
+                + [('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
+
+    def states(self, window_s: float) -> list[tuple[str, str]]:
+        """``(level, message)`` pairs: ERROR while frames of another size arrive (within
+        ``window_s``), the tracking state, WARN after a time reset (within ``window_s``)."""
+        states = []
+        if self.size_mismatch.within(window_s):
+            states.append(('error', f'every frame dropped: {self.size_mismatch.detail}'))
+        states.append(self.composer.status())
+        if self.last_reset.within(window_s):
+            states.append(('warn', 'stamps went back: time state restarted'))
+        return states

@@ -1,0 +1,155 @@
+"""The live odometry of resonator_node (core/live.py) with a scripted estimator, without ROS."""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any
+
+import numpy as np
+
+from hrn_vo_ros.core.events.stream import Note
+from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, Step
+from hrn_vo_ros.core.odometry.estimate import Estimate
+from hrn_vo_ros.core.odometry.odometry import OdometryConfig
+from hrn_vo_ros.core.odometry.publish import GyroGate
+from hrn_vo_ros.errors import HrnVoError
+
+EYE = tuple(float(v) for v in np.eye(3).ravel())
+IMAGE = np.zeros((6, 8), np.uint8)
+MS = 1_000_000
+
+
+class Scripted:
+    """An estimator recording whether each step had a gyro increment."""
+
+    factors = ('h', 'v', 'r')
+    rejected_frames = 0
+
+    def __init__(self, fail_at: int = -1) -> None:
+        self.steps: list[tuple[int, bool]] = []
+        self.fail_at = fail_at
+
+    def step(self, image: Any, t_ns: int, *, gyro_delta: Any = None) -> Estimate:
+        self.steps.append((t_ns, gyro_delta is not None))
+        if len(self.steps) - 1 == self.fail_at:
+            raise HrnVoError('diverged')
+        return Estimate(t_ns, float(len(self.steps)), 0.0, 0.0, 0.0,
+                        confidence={'h': 1.0, 'v': 1.0, 'r': 1.0}, quality=1.0,
+                        state='tracking')
+
+
+def settings(imu: bool = False, focal_px: float = 0.0) -> LiveSettings:
+    return LiveSettings(width=8, height=6, imu=imu, with_z=False,
+                        odometry=OdometryConfig(focal_length_px=80.0), focal_px=focal_px,
+                        lost_variance=1e6, min_quality=0.05, imu_timeout_s=0.5,
+                        camera_from_imu=EYE)
+
+
+def live(est: Scripted, now: list[float] | None = None) -> LiveOdometry:
+    clock = now if now is not None else [0.0]
+    gate = GyroGate(EYE, max_samples=1000, max_pending=3)
+    return LiveOdometry(est, gate, tolerance_ns=10 * MS, counts=Counter(),  # type: ignore[arg-type]
+                        now=lambda: clock[0])
+
+
+def steps(items: list[Item]) -> list[int]:
+    return [i.t_ns for i in items if isinstance(i, Step)]
+
+
+def notes(items: list[Item]) -> list[tuple[str, str]]:
+    return [(i.level, i.kind) for i in items if isinstance(i, Note)]
+
+
+def test_without_imu_each_frame_is_one_step_with_a_twist_from_the_second() -> None:
+    est = Scripted()
+    lo = live(est)
+    first = list(lo.frame(10**9, IMAGE, settings()))
+    second = list(lo.frame(10**9 + 10 * MS, IMAGE, settings()))
+    assert steps(first) == [10**9] and steps(second) == [10**9 + 10 * MS]
+    assert isinstance(first[0], Step) and first[0].out.twist is None
+    assert isinstance(second[0], Step) and second[0].out.twist is not None
+    assert lo.counts['estimates_out'] == 2 and lo.counts['invalid_frames'] == 0
+    assert [g for _, g in est.steps] == [False, False]
+
+
+def test_with_imu_frames_wait_for_the_gyro_and_use_it() -> None:
+    est = Scripted()
+    lo = live(est)
+    s = settings(imu=True)
+    assert list(lo.frame(100 * MS, IMAGE, s)) == []
+    assert steps(list(lo.imu(50 * MS, np.zeros(3), s))) == []
+    assert steps(list(lo.imu(120 * MS, np.zeros(3), s))) == [100 * MS]
+    assert list(lo.frame(200 * MS, IMAGE, s)) == []
+    assert steps(list(lo.imu(250 * MS, np.zeros(3), s))) == [200 * MS]
+    assert est.steps[1] == (200 * MS, True)           # the second has a gyro increment
+
+
+def test_a_size_mismatch_is_a_reject_and_an_error_for_the_window() -> None:
+    now = [5.0]
+    lo = live(Scripted(), now)
+    items = list(lo.frame(10**9, np.zeros((6, 9), np.uint8), settings()))
+    assert notes(items) == [('reject', 'size')]
+    assert lo.states(10.0)[0][0] == 'error' and 'frames are 9x6' in lo.states(10.0)[0][1]
+    now[0] += 11.0
+    assert lo.states(10.0) == [('ok', 'tracking tracking (quality 1.00)')]
+
+
+def test_frame_stamps_going_back_restart_the_time_state() -> None:
+    est = Scripted()
+    lo = live(est)
+    s = settings(imu=True)
+    list(lo.imu(10**9, np.zeros(3), s))
+    list(lo.frame(2 * 10**9, IMAGE, s))                     # waits: not covered
+    old_gyro = lo.gate.gyro
+    assert notes(list(lo.frame(2 * 10**9 - 5 * MS, IMAGE, s))) == [('reject', 'time_backwards')]
+    items = list(lo.frame(10**9 // 2, IMAGE, s))          # back by 1.5 s: a reset
+    assert steps(items) == [2 * 10**9]                      # the waiting frame went first
+    assert ('warn', 'time_reset') in notes(items)
+    note = [i for i in items if isinstance(i, Note)][0]
+    assert note.throttled and note.text.startswith('frames stamps went back')
+    assert lo.counts['clock_resets_frames'] == 1 and lo.gate.gyro is not old_gyro
+    assert lo.pipeline.gyro is lo.gate.gyro and lo.states(10.0)[-1][0] == 'warn'
+    assert len(lo.gate) == 1
+
+
+def test_imu_stamps_and_frame_checks() -> None:
+    lo = live(Scripted())
+    s = settings(imu=True)
+    list(lo.imu(10**9, np.zeros(3), s))
+    assert notes(list(lo.imu(10**9, np.zeros(3), s))) == [('reject', 'imu_time')]
+    list(lo.imu(10**8, np.zeros(3), s))
+    assert lo.counts['clock_resets_imu'] == 1
+    assert notes(list(lo.imu_frame('imu', 'imu_link'))) == [('warn', 'imu_frame')]
+    assert list(lo.imu_frame('imu_link', 'imu_link')) == []
+    assert lo.counts['imu_frame_mismatch'] == 1
+
+
+def test_tick_processes_frames_when_the_imu_stopped() -> None:
+    now = [0.0]
+    lo = live(Scripted(), now)
+    s = settings(imu=True)
+    list(lo.frame(10**9, IMAGE, s))
+    now[0] = 0.4
+    assert list(lo.tick(s)) == []
+    now[0] = 0.6
+    assert steps(list(lo.tick(s))) == [10**9]
+
+
+def test_tracking_errors_are_rejects_and_focal_warnings_notes() -> None:
+    lo = live(Scripted(fail_at=0))
+    assert notes(list(lo.frame(10**9, IMAGE, settings()))) == [('reject', 'tracking')]
+    items = list(lo.frame(10**9 + MS, IMAGE, settings(focal_px=100.0)))
+    assert notes(items) == [('warn', 'focal')] and isinstance(items[1], Step)
+    assert items[1].odometry.focal_length_px == 100.0
+    frames, extra = lo.static_frames(settings(focal_px=100.0), base='b', camera='c', imu='')
+    assert extra == [] and [(p, c) for p, c, _, _ in frames] == [('b', 'c')]
+
+
+def test_diagnostic_values_keys() -> None:
+    lo = live(Scripted())
+    list(lo.frame(10**9, IMAGE, settings()))
+    values = dict(lo.diagnostic_values('1.0', 2, 1))
+    assert values['output_subscribers'] == 2 and values['odom_subscribers'] == 1
+    assert values['pending_frames'] == 0 and values['imu_rejected_frames'] == 0
+    assert values['quality'] == '1.000' and values['clock_resets'] == 0
+    assert list(values)[0] == 'frame_rate_hz'
