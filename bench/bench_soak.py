@@ -47,28 +47,21 @@ from hrn_vo_ros.core.evaluation.series import EstimateSeries  # noqa: E402
 from hrn_vo_ros.core.events.frames import with_calibration  # noqa: E402
 from hrn_vo_ros.errors import HrnVoError  # noqa: E402
 from hrn_vo_ros.io import bags  # noqa: E402
-from hrn_vo_ros.io.convert import convert  # noqa: E402
-from hrn_vo_ros.io.ecd import read_calib, read_events, read_groundtruth, write_sequence  # noqa: E402
+from hrn_vo_ros.io.ecd import read_calib, read_events, read_groundtruth  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs  # noqa: E402
 from hrn_vo_ros.nodes import graph as G  # noqa: E402,N812
 from hrn_vo_ros.nodes.common import qos  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_latency  # noqa: E402
 
 CONFIG = ROOT / 'config' / 'shapes_rotation.yaml'
 NODES = ('packetizer_node', 'resonator_node')
 
 
 def prepare(work: Path, seconds: float, seed: int) -> tuple[Path, Path]:
-    """The simulated sequence and its bag, re-used when present."""
-    name = f'rotation_{seconds:g}s_seed{seed}'
-    seq, bag = work / name, work / f'{name}_bag'
-    if not seq.exists():
-        from hrn_vo_ros.core.sim.simulator import simulate
-        t0 = time.perf_counter()
-        write_sequence(seq, simulate('rotation', seconds, seed=seed))
-        print(f'simulated {seconds:g} s in {time.perf_counter() - t0:.0f} s -> {seq}')
-    if not bag.exists():
-        convert(seq, bag)
-    return seq, bag
+    """The simulated sequence and its bag, re-used when present (as bench_latency makes them)."""
+    return bench_latency.prepare(work, seconds, seed, None)
 
 
 def load_packets(bag: Path) -> list[tuple[int, bytes]]:

@@ -9,7 +9,7 @@ import time
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -94,6 +94,22 @@ def _ignore_stop_signals() -> None:
             signal.signal(sig, signal.SIG_IGN)
 
 
+def _executor() -> SingleThreadedExecutor | None:
+    """rclpy's executor, made with the stop signals held back until it exists; None when a
+    signal already shut the context down (while the node was being made).
+
+    An executor made on a shut-down context, or interrupted in its constructor, is left
+    half-made and its ``__del__`` prints a traceback; held back, a signal arrives right after
+    and stops the node as at any other point.
+    """
+    stop = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, stop)
+    try:
+        return SingleThreadedExecutor() if rclpy.ok() else None
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def default_stop_signals() -> None:
     """SIGINT raises KeyboardInterrupt and SIGTERM ends the process again (Python's defaults),
     replacing the start-up handlers of :mod:`hrn_vo_ros.nodes`; ``rclpy.init`` then installs
@@ -137,7 +153,9 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
         rclpy.init(args=args)
         initialised = True
         node = make_node()
-        rclpy.spin(node)
+        executor = _executor()
+        if executor is not None:
+            rclpy.spin(node, executor=executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ConfigError as err:
