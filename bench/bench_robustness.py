@@ -73,6 +73,7 @@ from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  
 from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import make_backend  # noqa: E402
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402
+from hrn_vo_ros.core.pipeline import OdometryPipeline  # noqa: E402
 from hrn_vo_ros.core.sim.family import draw, fresh_seeds, simulate_draw, tuning_seeds  # noqa: E402
 from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
@@ -180,23 +181,10 @@ def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
             assert seq.imu is not None
             rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
             gyro = GyroIntegrator.from_imu(seq.imu, rot)
-    rows, states, quality = [], [], []
-    prev = None
+    pipe = OdometryPipeline(est, gyro=gyro, with_z=rcfg.scale.enabled)
     for i in range(len(t)):
-        delta = None
-        if gyro is not None:
-            angle = gyro.angle_at(int(t[i]))
-            delta = None if prev is None else angle - prev
-            prev = angle
-        e = est.step(imgs[i], int(t[i]), gyro_delta=delta)
-        rows.append((e.h, e.v, e.r, e.z))
-        states.append(getattr(e, 'state', None))
-        quality.append(float(getattr(e, 'quality', math.nan)))
-    arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
-    est_s = EstimateSeries(np.asarray(t, dtype=np.int64), arr[:, 0], arr[:, 1], arr[:, 2],
-                           arr[:, 3] if rcfg.scale.enabled else None)
-    return (est_s, (None if any(s is None for s in states) else [str(s) for s in states]),
-            np.asarray(quality, np.float64))
+        pipe.step(imgs[i], int(t[i]))
+    return pipe.series(), pipe.states(), pipe.quality()
 
 
 def late_flags(st: np.ndarray, eps: list[tuple[int, int, float | None]]) -> int:
