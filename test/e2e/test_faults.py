@@ -25,6 +25,7 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from ros_helpers import spin_until
 from sensor_msgs.msg import Image, JointState
 
 from hrn_vo_ros.cli import recover as recover_cli
@@ -87,12 +88,7 @@ class Probe:
 
     def wait(self, cond: Callable[[], bool], timeout: float = 20.0) -> bool:
         """Spin until ``cond()`` or ``timeout`` seconds passed; the final ``cond()``."""
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if cond():
-                return True
-            self.ex.spin_once(timeout_sec=0.02)
-        return cond()
+        return spin_until(self.ex, cond, timeout)
 
     def events(self, n: int) -> EventArray:
         """``n`` events inside the sensor, continuing the probe's sensor clock."""

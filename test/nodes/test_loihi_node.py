@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from hrn_synth import event_frame, random_scene
@@ -14,6 +13,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from ros_helpers import spin_until
 from sensor_msgs.msg import Image
 
 from hrn_vo_ros.io import ros_msgs
@@ -47,10 +47,7 @@ def test_loihi_node_publishes_odometry_raster_and_accounting() -> None:
     ex.add_node(probe)
 
     def wait(cond: Callable[[], bool], timeout: float = 15.0) -> bool:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end and not cond():
-            ex.spin_once(timeout_sec=0.02)
-        return cond()
+        return spin_until(ex, cond, timeout)
 
     try:
         assert node.get_parameter('backend.name').value == 'spiking'

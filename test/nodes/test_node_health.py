@@ -24,6 +24,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import spin_until
 from sensor_msgs.msg import CameraInfo, Image
 from test_nodes import packet, random_events
 
@@ -85,10 +86,7 @@ class Probe:
         return got[-1] if got else None
 
     def wait(self, cond: Callable[[], bool], timeout: float = 10.0) -> bool:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end and not cond():
-            self.ex.spin_once(timeout_sec=0.02)
-        return cond()
+        return spin_until(self.ex, cond, timeout)
 
     def wait_level(self, node: str, level: bytes, timeout: float = 10.0) -> Status:
         n0 = len(self.diags.get(node, []))

@@ -16,6 +16,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import spin_until
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 
 from hrn_vo_ros.core.events.arrays import EventArray
@@ -84,12 +85,7 @@ class Graph:
         self.diags[msg.status[0].name.split(':')[0]] = ros_msgs.diagnostic_values(msg)
 
     def wait(self, cond: Callable[[], bool], timeout: float = 10.0) -> bool:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if cond():
-                return True
-            self.ex.spin_once(timeout_sec=0.02)
-        return cond()
+        return spin_until(self.ex, cond, timeout)
 
     def close(self) -> None:
         for n in (self.packetizer, self.resonator, self.probe):
@@ -251,10 +247,7 @@ def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Gen
         ex.add_node(probe)
 
         def wait(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
-            end = time.monotonic() + timeout
-            while time.monotonic() < end and not cond():
-                ex.spin_once(timeout_sec=0.02)
-            return cond()
+            return spin_until(ex, cond, timeout)
 
         assert wait(lambda: ev_pub.get_subscription_count() > 0)
         ev = random_events(rng, 6 * PER_FRAME + 50)
