@@ -31,7 +31,11 @@ translation kind gives the position ``(h d / f, v d / f, d (1 - exp(-z)))`` at t
 ``d`` with the roll as the orientation. The ground truth of the Event Camera Dataset
 (``groundtruth.txt``: ``t px py pz qx qy qz qw``, camera in the world) is already in this form;
 as the estimate starts at the identity, compare them after aligning the first pose (e.g. evo's
-origin alignment, ``evo_ape tum groundtruth.txt est.tum --align_origin``).
+origin alignment, ``evo_ape tum groundtruth.txt est.tum --align_origin``). evo pairs each pose
+with the nearest stamp of the other file (within ``--t_max_diff``, 10 ms by default): against a
+100-200 Hz motion-capture ground truth at hundreds of degrees per second that pairing alone adds
+tenths of a degree, so pass a ``--t_max_diff`` of about half a frame interval (the simulator's
+ground truth is at 1 kHz).
 """
 
 from __future__ import annotations

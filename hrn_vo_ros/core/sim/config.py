@@ -42,7 +42,9 @@ class SimulatorConfig:
     lens_distortion: float = param(1.0, 'scales the scene preset lens distortion (0: pinhole)',
                                    lo=0.0, hi=3.0)
     imu_rate_hz: float = param(1000.0, 'IMU sample rate, Hz', lo=1.0, hi=1e5)
-    gt_rate_hz: float = param(200.0, 'ground-truth (motion capture) rate, Hz', lo=1.0, hi=1e5)
+    gt_rate_hz: float = param(1000.0, 'ground-truth rate, Hz (motion capture gives 100-200; the '
+                              'simulator knows every pose; evo pairs nearest stamps)',
+                              lo=1.0, hi=1e5)
     gyro_noise: float = param(3e-3, 'gyro white noise std per sample, rad/s', lo=0.0, hi=10.0)
     gyro_bias: float = param(5e-3, 'std of the constant gyro bias per axis, rad/s', lo=0.0,
                              hi=10.0)

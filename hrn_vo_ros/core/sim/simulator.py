@@ -10,7 +10,7 @@ Public API::
     optical_axis_estimate(gt, plane_z) -> (h, v, r, z)   # ideal image registration (benchmarks)
 
 The returned `Sequence` holds the events (int64 ns, sorted),
-the calibration (with the sensor size), the IMU (1 kHz) and the ground truth (200 Hz).
+the calibration (with the sensor size), the IMU (1 kHz) and the ground truth (1 kHz; `gt_rate_hz`).
 
 Scenes (``kind``):
 

@@ -88,7 +88,7 @@ def test_noise_adds_events_everywhere() -> None:
 def test_gyro_integrates_to_ground_truth(quiet_rotation: Sequence) -> None:
     imu, gt = quiet_rotation.imu, quiet_rotation.groundtruth
     assert imu is not None and gt is not None
-    assert len(imu) == 501 and len(gt) == 101
+    assert len(imu) == 501 and len(gt) == 501  # 0.5 s at 1 kHz each
     R = np.eye(3)
     dt = np.diff(imu.t) * 1e-9
     for k in range(len(dt)):
@@ -164,6 +164,6 @@ def test_simulate_cli_writes_readable_dataset(tmp_path: Path,
     assert 'events' in capsys.readouterr().out
     assert read_sensor_size(out) == (240, 180)
     assert read_calib(out).fx == pytest.approx(199.1)
-    assert len(read_groundtruth(out)) == 41
+    assert len(read_groundtruth(out)) == 201  # 0.2 s at 1 kHz
     assert len(read_imu(out)) == 201
     assert main(['simulate', str(out), '--seconds', '0.1']) == 3  # refuses to overwrite
