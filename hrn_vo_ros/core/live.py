@@ -5,7 +5,11 @@
 (:class:`~hrn_vo_ros.core.odometry.publish.GyroGate`), the pose/twist composer, the stamp checks
 of both streams and the diagnostics windows. A frame or IMU stamp going back by more than the
 tolerance restarts that stream's time state (waiting frames processed, a new gyro integrator,
-no twist across; counted as ``clock_resets_<stream>``).
+no twist across; counted as ``clock_resets_<stream>``). A frame-stamp reset also restarts
+tracking (``estimator.reset()``, counted as ``tracking_restarts``): after a looped bag or a
+driver restart the scene seen next need not match the map, and a network kept across the jump
+locked onto a wrong roll (the soak's looped bag: 19 of 29 later loops about 30 deg off); the
+next frame starts a new map and the pose starts again from the identity, as at start-up.
 
 Each call yields, lazily and in order, :class:`~hrn_vo_ros.core.events.stream.Note` entries
 (rejects and warnings for the caller to count and log) and :class:`Step` results (one
@@ -174,8 +178,12 @@ class LiveOdometry:
         self.composer.restart()
         yield from self._drain(s, force=True)
         self.pipeline.gyro = self.gate.new_gyro(s.camera_from_imu)
+        if what == 'frames':
+            self.pipeline.estimator.reset()
+            self.counts['tracking_restarts'] += 1
         yield Note('warn', 'time_reset', f'{what} stamps went back by more than '
-                   'clock_tolerance_s: time state restarted (a driver restart or a looped bag)',
+                   'clock_tolerance_s: time state restarted (a driver restart or a looped bag)'
+                   + ('; tracking restarts from the next frame' if what == 'frames' else ''),
                    throttled=True)
 
     def _drain(self, s: LiveSettings, *, force: bool) -> Iterator[Item]:

@@ -28,6 +28,10 @@ class Scripted:
     def __init__(self, fail_at: int = -1) -> None:
         self.steps: list[tuple[int, bool]] = []
         self.fail_at = fail_at
+        self.resets: list[int] = []     # the number of steps at each reset
+
+    def reset(self) -> None:
+        self.resets.append(len(self.steps))
 
     def step(self, image: Any, t_ns: int, *, gyro_delta: Any = None) -> Estimate:
         self.steps.append((t_ns, gyro_delta is not None))
@@ -110,15 +114,20 @@ def test_frame_stamps_going_back_restart_the_time_state() -> None:
     assert lo.counts['clock_resets_frames'] == 1 and lo.gate.gyro is not old_gyro
     assert lo.pipeline.gyro is lo.gate.gyro and lo.states(10.0)[-1][0] == 'warn'
     assert len(lo.gate) == 1
+    # tracking restarts after the waiting frame (a new map from the first frame after the jump)
+    assert est.resets == [1] and lo.counts['tracking_restarts'] == 1
+    assert note.text.endswith('tracking restarts from the next frame')
 
 
 def test_imu_stamps_and_frame_checks() -> None:
-    lo = live(Scripted())
+    est = Scripted()
+    lo = live(est)
     s = settings(imu=True)
     list(lo.imu(10**9, np.zeros(3), s))
     assert notes(list(lo.imu(10**9, np.zeros(3), s))) == [('reject', 'imu_time')]
     list(lo.imu(10**8, np.zeros(3), s))
     assert lo.counts['clock_resets_imu'] == 1
+    assert est.resets == []             # an IMU reset keeps tracking
     assert notes(list(lo.imu_frame('imu', 'imu_link'))) == [('warn', 'imu_frame')]
     assert list(lo.imu_frame('imu_link', 'imu_link')) == []
     assert lo.counts['imu_frame_mismatch'] == 1
