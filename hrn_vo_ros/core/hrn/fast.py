@@ -337,13 +337,26 @@ class FastEngine:
             if bound <= 0.0:
                 continue
             c /= np.maximum(mag, 1e-30)
-            corr = np.real(self.XH['v'] @ c @ self.XH['h'].T)
+            corr = self._decode_shifts(c)
             i, j = np.unravel_index(int(np.argmax(corr)), corr.shape)
             out.append((float(corr[i, j]) / bound,
                         {'h': bh.wrap(float(bh.values[j])), 'v': bv.wrap(float(bv.values[i])),
                          'r': r_k, 'z': z}))
         out.sort(key=lambda sc: -sc[0])
         return out[:keep]
+
+    def _decode_shifts(self, c: Complex) -> Real:
+        """``Re X_v† c X_h†ᵀ`` over every h/v codebook pair. With full DFT codebooks
+        (``X[a, j] = exp(-2πi a v_j / n)``) that is ``H W · Re ifft2(c)`` read at the entries'
+        bins ``v_j mod n``: one FFT instead of two dense products (8 ms per re-localisation
+        search of 24 rolls before)."""
+        if not (self._full['h'] and self._full['v']):
+            return np.asarray(np.real(self.XH['v'] @ c @ self.XH['h'].T), np.float64)
+        bh, bv = self.books['h'], self.books['v']
+        full = np.real(hfft.ifft2(c)) * float(c.size)
+        iv = np.mod(bv.values.astype(np.intp), c.shape[0])
+        ih = np.mod(bh.values.astype(np.intp), c.shape[1])
+        return np.asarray(full[np.ix_(iv, ih)], np.float64)
 
     def set_point(self, point: dict[str, float]) -> None:
         """Set every factor state to its codebook vector at ``point`` (seed^a, index units)."""

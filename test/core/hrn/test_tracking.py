@@ -237,3 +237,21 @@ def test_the_overlap_ignores_the_frame_window() -> None:
     assert weighted_overlap(fa, np.zeros_like(fa), w) == 0.0
     w0 = highpass_weights(96, 128, 0.0)
     assert weighted_overlap(fa, fb, w0) == pytest.approx(spectral_overlap(fa, fb))
+
+
+def test_shift_decode_of_the_relocalisation_is_the_codebook_product() -> None:
+    """The FFT form of ``Re X_v† c X_h†ᵀ`` equals the dense codebook product, and finds a
+    known shift: a cross-power of a pure shift (dh, dv) peaks at the entry of (dh, dv)."""
+    eng = make()._engine
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=(96, 128)) + 1j * rng.normal(size=(96, 128))
+    dense = np.real(eng.XH['v'] @ c @ eng.XH['h'].T)
+    fast = eng._decode_shifts(c)
+    assert np.abs(fast - dense).max() < 1e-9 * np.abs(dense).max()
+    # a shift of dh = 5, dv = -7 entries: c = X_v[:, v] X_h[:, h]^T (outer product)
+    bh, bv = eng.books['h'], eng.books['v']
+    j, i = int(np.flatnonzero(bh.values == 5)[0]), int(np.flatnonzero(bv.values == -7)[0])
+    pure = np.outer(eng.X['v'][:, i], eng.X['h'][:, j])
+    corr = eng._decode_shifts(pure)
+    assert np.unravel_index(int(np.argmax(corr)), corr.shape) == (i, j)
+    assert corr[i, j] == pytest.approx(96 * 128)
