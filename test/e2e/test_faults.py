@@ -411,10 +411,23 @@ def test_recorder_finishes_its_bag_on_repeated_sigterm(ros: None, tmp_path: Path
     try:
         assert probe.wait(lambda: pub.get_subscription_count() > 0
                           and 'term_recorder' in probe.diags, 60.0), rec.log.read_text()
-        for i in range(30):
+        # Our publisher seeing the recorder's subscription does not mean the recorder has
+        # matched our publisher yet (discovery runs both ways; a clean-clone CI run lost the
+        # first images so): warm up until one image is recorded, let the count settle, then
+        # send 30 more, all of which must reach the bag.
+        key = f'recorded {topic}'
+        end, i = time.monotonic() + 30.0, 0
+        while probe.value('term_recorder', key) == 0 and time.monotonic() < end:
             pub.publish(_image(i))
-        assert probe.wait(lambda: probe.value('term_recorder', f'recorded {topic}') >= 30,
-                          30.0), probe.diags
+            i += 1
+            probe.wait(lambda: probe.value('term_recorder', key) > 0, 0.3)
+        assert probe.value('term_recorder', key) > 0, probe.diags
+        probe.wait(lambda: False, 1.0)          # late warm-up images and diagnostics arrive
+        warm = probe.value('term_recorder', key)
+        for j in range(30):
+            pub.publish(_image(i + j))
+        assert probe.wait(lambda: probe.value('term_recorder', key) >= warm + 30, 30.0), \
+            probe.diags
         for _ in range(3):
             rec.proc.send_signal(signal.SIGTERM)
             time.sleep(0.05)
@@ -425,5 +438,5 @@ def test_recorder_finishes_its_bag_on_repeated_sigterm(ros: None, tmp_path: Path
         node.destroy_node()
         probe.node.destroy_node()
     assert code == 0 and 'Traceback' not in log, (code, log[-3000:])
-    assert bags.verify_bag(out).counts == {topic: 30}
+    assert bags.verify_bag(out).counts == {topic: warm + 30}
     assert not (tmp_path / 'rec.partial').exists()
