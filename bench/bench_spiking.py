@@ -11,7 +11,13 @@ Prints, measured in this run:
    per-iteration spikes, synaptic operations, Loihi energy/latency estimates, next to the float
    HRN's CPU operation counts (fast and dense path); ``--write-docs`` puts the table into
    docs/spiking.md;
-3. the frames/s of the float backend and of the spiking emulation (run back to back).
+3. the frames/s of the float backend and of the spiking emulation (run back to back);
+4. (``--resources``) the resource report of ``hrn-vo spiking-report`` on the first seed's
+   frames: neurons, synapses, cores and chips, per-iteration spikes, synaptic operations,
+   energy and time with their sources, the dense reference form and the CPU's figures.
+
+The spiking backend runs its default form (``spiking.transform: sparse``: butterfly and
+log-polar tap layers); ``--set spiking.transform=dense`` runs the dense reference.
 
 ``--synthetic`` runs the same comparison on synthetic event frames of a known smooth shift and
 roll (``test/hrn_synth.py``, map learning on) instead of simulated sequences; the "geodesic"
@@ -52,6 +58,7 @@ from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig  # noqa: E40
 from hrn_vo_ros.core.sim.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
+from hrn_vo_ros.core.spiking.report import report  # noqa: E402
 from hrn_vo_ros.errors import DatasetError  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
 
@@ -154,6 +161,8 @@ def main() -> int:
     ap.add_argument('--frames', type=int, default=0, help='use only the first N frames')
     ap.add_argument('--sweep', action='store_true', help='T x weight-bits table (first seed)')
     ap.add_argument('--write-docs', action='store_true', help=f'write the table into {DOC}')
+    ap.add_argument('--resources', action='store_true',
+                    help='print the resource report on the first seed (up to 300 frames)')
     ap.add_argument('--cache', type=Path, default=None, help='cache simulated frames here')
     ap.add_argument('--synthetic', action='store_true',
                     help='known-motion synthetic frames instead of simulated sequences')
@@ -218,13 +227,23 @@ def main() -> int:
     ff = 1.0 / np.median(np.concatenate(times_f))
     fs = 1.0 / np.median(np.concatenate(times_s))
     print(f'  frames/s (median per-frame time): float {ff:.0f}, spiking emulation {fs:.1f} '
-          f'(>= 20: {"ok" if fs >= 20 else "FAIL"}), ratio float/spiking {ff / fs:.1f}')
+          f'(>= 50: {"ok" if fs >= 50 else "FAIL"}), ratio float/spiking {ff / fs:.1f}')
+    if args.resources and first is not None:
+        print_resources(cfg, spk.spiking, first[0], first[1])
     if args.sweep and first is not None:
         table = sweep(cfg, first, args.seeds[0])
         print('\n' + table)
         if args.write_docs:
             write_docs(table)
     return 0
+
+
+def print_resources(cfg: ResonatorConfig, sc: SpikingConfig, t: np.ndarray,
+                    imgs: np.ndarray) -> None:
+    """The resource report of ``hrn-vo spiking-report`` on up to 300 of these frames."""
+    print('\nresources (hrn-vo spiking-report):')
+    for line in report(cfg, sc, (t[:300], imgs[:300])):
+        print(line, flush=True)
 
 
 def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.ndarray, float],
@@ -243,9 +262,12 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
              f'per resonator iteration (estimates, see core/spiking/accounting.py). CPU float '
              f'HRN per iteration: fast path {ops["fast"] / 1e6:.1f} M flop, dense path '
              f'{ops["dense"] / 1e6:.0f} M flop. "Core" = bindings, marginals and cleanups; the '
-             f"rest are the dense Λ/Λ' transform layers.", '',
+             f"rest are the Λ/Λ' transform layers (sparse: butterfly and log-polar tap layers; "
+             f'dense: N x N layers). Energy: active operations; "+idle": every compartment '
+             f'updated at every step of the iteration (52 pJ each). Rows are the sparse form '
+             f'unless marked dense.', '',
              '| T | weights | \\|d roll\\| deg | \\|d h\\| px | \\|d v\\| px | geodesic deg | '
-             'spikes | synops (M): all / resonator core | energy (µJ): all / core | '
+             'spikes | synops (M): all / resonator core | energy (µJ): all / core / +idle | '
              'latency (µs) | emulation frames/s |',
              '|---|---|---|---|---|---|---|---|---|---|---|']
     variants: list[tuple[str, SpikingConfig]] = []
@@ -255,7 +277,9 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
         variants += [(f'{bits}-bit', SpikingConfig(steps_per_cycle=steps, weight_bits=bits))
                      for bits in (4, 6, 8)]
     # Ablations at T = 32, 8-bit: realisations and codes other than the default.
-    variants += [('8-bit, delay synapses', SpikingConfig(synapse='delay')),
+    variants += [('8-bit, dense reference', SpikingConfig(transform='dense')),
+                 ('8-bit, radix 2', SpikingConfig(max_radix=2)),
+                 ('8-bit, delay synapses', SpikingConfig(synapse='delay')),
                  ('8-bit, ReLU threshold p', SpikingConfig(nonlinearity='relu')),
                  ('8-bit, 4-bit payloads', SpikingConfig(payload_bits=4)),
                  ('8-bit, binary spikes', SpikingConfig(payload_bits=1))]
@@ -266,7 +290,8 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
         lines.append(f'| {sc.steps_per_cycle} | {label} | {droll:.2f} | {dh:.2f} | {dv:.2f} | '
                      f'{gs:.2f} | {acc["spikes"]:.3g} | {acc["synops"] / 1e6:.1f} / '
                      f'{acc["synops_core"] / 1e6:.2f} | {acc["energy_uJ"]:.0f} / '
-                     f'{acc["energy_core_uJ"]:.1f} | {acc["time_us"]:.0f} | '
+                     f'{acc["energy_core_uJ"]:.1f} / +{acc["energy_idle_uJ"]:.0f} | '
+                     f'{acc["time_us"]:.0f} | '
                      f'{1.0 / np.median(dts):.0f} |')
         print(lines[-1], flush=True)
     return '\n'.join(lines)

@@ -18,7 +18,8 @@ from hrn_vo_ros.errors import ConfigError, exit_code_for, HrnVoError
 
 # Subcommand modules, in the order `hrn-vo --help` lists them. A module missing from an
 # installation (optional backends) is skipped.
-SUBCOMMANDS = ('simulate', 'run', 'evaluate', 'convert', 'play', 'demo', 'check', 'recover')
+SUBCOMMANDS = ('simulate', 'run', 'evaluate', 'convert', 'play', 'demo', 'check', 'recover',
+               'spiking_report')
 
 # What each subcommand writes (argument dests): the folder of every output must exist, a
 # ``file`` output must not be an existing folder (a ``plot`` may be one: it writes into it);

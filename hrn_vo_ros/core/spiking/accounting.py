@@ -49,6 +49,9 @@ class LoihiCosts:
         e_spike: Energy of a spike within a tile: 1.7 pJ (each mesh hop adds 3.0-4.0 pJ).
         t_sync: Mesh-wide barrier synchronisation per time step: 113-465 ns (1-32 tiles); the
             upper value is used.
+        e_neuron_idle: Energy of an inactive compartment update: 52 pJ (a compartment is
+            updated every time step whether or not its layer is integrating).
+        t_neuron_idle: Time of an inactive compartment update: 5.3 ns.
     """
 
     e_synop: float = 23.6e-12
@@ -57,6 +60,8 @@ class LoihiCosts:
     t_neuron: float = 8.4e-9
     e_spike: float = 1.7e-12
     t_sync: float = 465e-9
+    e_neuron_idle: float = 52e-12
+    t_neuron_idle: float = 5.3e-9
 
 
 @dataclass(slots=True)
@@ -131,6 +136,22 @@ class IterationAccount:
         work = (self.neuron_updates * k.t_neuron + self.synops * k.t_synop) / cores
         return work + self.steps * k.t_sync
 
+    @property
+    def idle_updates(self) -> float:
+        """Compartment updates per iteration outside the layers' active cycles: every neuron is
+        updated at every one of the iteration's ``steps``, the counted (active) updates are only
+        the cycle in which its layer integrates."""
+        return max(0.0, float(self.neurons) * self.steps - self.neuron_updates)
+
+    def idle_energy(self, costs: LoihiCosts | None = None) -> float:
+        """Energy of the idle compartment updates, joules (add to :meth:`energy` for the
+        every-compartment-every-step bound)."""
+        return self.idle_updates * (costs or LoihiCosts()).e_neuron_idle
+
+    def idle_time(self, costs: LoihiCosts | None = None) -> float:
+        """Time of the idle compartment updates on evenly loaded cores, seconds."""
+        return self.idle_updates * (costs or LoihiCosts()).t_neuron_idle / max(self.cores, 1)
+
     def split(self, marker: str = TRANSFORM_MARKER) -> tuple[IterationAccount, IterationAccount]:
         """``(transforms, core)``: the layers whose name holds ``marker`` (the dense Λ/Λ' and
         input layers) and the rest (bindings, marginals, cleanups), as separate accounts."""
@@ -150,7 +171,9 @@ class IterationAccount:
                 'cores': float(self.cores), 'steps': float(self.steps),
                 'synapses': float(self.synapses),
                 'saturated': float(self.saturated), 'energy_uJ': self.energy(costs) * 1e6,
-                'time_us': self.time(costs) * 1e6}
+                'time_us': self.time(costs) * 1e6,
+                'energy_idle_uJ': self.idle_energy(costs) * 1e6,
+                'time_idle_us': self.idle_time(costs) * 1e6}
 
 
 def mean_account(accounts: Iterable[IterationAccount]) -> dict[str, float]:

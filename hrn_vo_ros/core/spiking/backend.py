@@ -16,11 +16,18 @@ built on :class:`~hrn_vo_ros.core.hrn.fast.FastEngine`. It keeps the fast engine
   complex synapses back, phasor projection by spike timing, partial self-connection γ), with the
   integer dynamics and quantised weights of ``precision='loihi'``.
 
-What is *not* emulated at neuron level ([design], stated for honesty): the Λ/Λ' transforms and
-the map update are applied to the spike-coded vectors with float weights (dense Λ would need
-N² ≈ 4.8e7 synapses per transform at 96x72, more than a Loihi 1 chip holds; they are counted as
-dense layers in the accounting); the marginal neurons' integer rounding (< 2^-state_bits relative)
-is not emulated; the map's stored value is float (it is sent as spikes when read).
+This module's :class:`SpikingEngine` is the *dense* form (``spiking.transform: dense``, the
+reference); the default sparse form,
+:class:`~hrn_vo_ros.core.spiking.sparse_engine.SparseSpikingEngine`, subclasses it and runs
+Λ/Λ' as butterfly and log-polar tap layers of phasor neurons. :class:`SpikingHRN` picks the
+form (``transform`` says which one runs).
+
+What the dense form does *not* emulate at neuron level ([design], stated for honesty): the
+Λ/Λ' transforms and the map update are applied to the spike-coded vectors with float weights
+(dense Λ would need N² ≈ 8.5e7 synapses per transform at 128x96, more than a chip holds; they
+are counted as dense layers in the accounting); the marginal neurons' integer rounding
+(< 2^-state_bits relative) is not emulated; the map's stored value is float (it is sent as
+spikes when read).
 
 Accounting (:class:`~hrn_vo_ros.core.spiking.accounting.IterationAccount`) per iteration: the
 cleanup layers are counted by the emulation; the binding and Λ layers are counted from the spike
@@ -39,10 +46,10 @@ from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.hrn.fast import FastEngine
 from hrn_vo_ros.core.hrn.logpolar import Geometry
 from hrn_vo_ros.core.hrn.network import HRN
-from hrn_vo_ros.core.hrn.shared import cleanup_weights, Floats, state_gamma
+from hrn_vo_ros.core.hrn.shared import cleanup_weights, Floats, Spectrum, state_gamma
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.accounting import cores_for, IterationAccount
-from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
+from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup, step_many
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import encode, Spikes
 from hrn_vo_ros.core.spiking.synapses import LayerCounts
@@ -91,7 +98,7 @@ class SpikingEngine(FastEngine):
 
     # -- hooks of the float engine ---------------------------------------------------------
 
-    def encode(self, canvas: Floats) -> Complex:
+    def encode(self, canvas: Floats) -> Spectrum:
         self.pixels = int(np.count_nonzero(canvas))
         return np.asarray(super().encode(canvas), np.complex128)   # general form: double
 
@@ -106,17 +113,29 @@ class SpikingEngine(FastEngine):
         return sp.decode()
 
     def update(self, name: str, x: Complex, a: Complex) -> Complex:
-        if not a.any():   # no input spikes: no update, as the float engines (blend_state)
-            return x
-        cl = self.cleanups[name]
-        sp, _ = cl.step(a, self.spikes.get(name))
-        self.spikes[name] = sp
-        # The similarity neurons' states, normalised like the float engine's drive readout.
-        if cl.last_input is not None and cl.last_similarity is not None:
-            bound = self.col_norm[name] * float(np.linalg.norm(cl.last_input.decode()))
-            self.drive[name] = (cl.last_similarity / bound if bound > 0
-                                else np.zeros_like(cl.last_similarity))
-        return sp.decode()
+        return self.update_many({name: (x, a)})[name]
+
+    def update_many(self, jobs: dict[str, tuple[Complex, Complex]]) -> dict[str, Complex]:
+        """:meth:`update` of several factors, their cleanup layers run as one population each
+        (:func:`~hrn_vo_ros.core.spiking.cleanup.step_many`; the same arithmetic)."""
+        out: dict[str, Complex] = {}
+        names = []
+        for name, (x, a) in jobs.items():
+            if not a.any():   # no input spikes: no update, as the float engines (blend_state)
+                out[name] = x
+            else:
+                names.append(name)
+        results = step_many([(self.cleanups[k], jobs[k][1], self.spikes.get(k)) for k in names])
+        for name, (sp, _) in zip(names, results, strict=True):
+            cl = self.cleanups[name]
+            self.spikes[name] = sp
+            # The similarity neurons' states, normalised like the float engine's drive readout.
+            if cl.last_input is not None and cl.last_similarity is not None:
+                bound = self.col_norm[name] * float(np.linalg.norm(cl.last_input.decode()))
+                self.drive[name] = (cl.last_similarity / bound if bound > 0
+                                    else np.zeros_like(cl.last_similarity))
+            out[name] = sp.decode()
+        return out
 
     def shift(self, name: str, delta: float) -> None:
         # IMU prediction: binding with a fractional power = a phase shift of every neuron,
@@ -198,14 +217,22 @@ class SpikingHRN(HRN):
                  spiking: SpikingConfig | None = None, **kwargs: Any) -> None:
         self.spiking = spiking if spiking is not None else SpikingConfig()
         self.last_account: IterationAccount | None = None
+        self.transform = self.spiking.transform     # the form that runs (set by the engine)
         if (cfg if cfg is not None else ResonatorConfig()).path != 'fast':
             raise ConfigError('the spiking backend needs path: fast (DFT codebooks): its neuron '
                               'populations are the factorised ones; set path to fast')
         super().__init__(cfg, rng=rng, engine=self._build_engine, **kwargs)
 
     def _build_engine(self, cfg: ResonatorConfig, g: Geometry) -> SpikingEngine:
-        """The network's engine (``HRN(engine=...)``), kept typed for the spike outputs."""
-        self._spiking_engine = SpikingEngine(cfg, g, self.spiking)
+        """The network's engine (``HRN(engine=...)``), kept typed for the spike outputs: the
+        sparse form where it runs (``transform``), else the dense one."""
+        from hrn_vo_ros.core.spiking.sparse_engine import sparse_supported, SparseSpikingEngine
+        if self.spiking.transform == 'sparse' and sparse_supported(cfg):
+            self._spiking_engine = SparseSpikingEngine(cfg, g, self.spiking)
+            self.transform = 'sparse'
+        else:
+            self._spiking_engine = SpikingEngine(cfg, g, self.spiking)
+            self.transform = 'dense'
         return self._spiking_engine
 
     def step(self, image: NDArray[Any], t_ns: int, *,
@@ -215,7 +242,7 @@ class SpikingHRN(HRN):
         eng.account = IterationAccount()
         est = super().step(image, t_ns, gyro_delta=gyro_delta)
         if eng.account.iterations:
-            if est.map_updated:
+            if est.map_updated and self.transform == 'dense':
                 g, steps = self.geometry, self.spiking.steps_per_cycle
                 nc = g.canvas_width * g.canvas_height
                 n_s = eng.sent['S'].count if 'S' in eng.sent else 0

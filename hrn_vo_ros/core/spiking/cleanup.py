@@ -30,10 +30,16 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import encode, rf_cycle_int, Spikes
-from hrn_vo_ros.core.spiking.synapses import ComplexSynapses, LayerCounts, scale_kicks
+from hrn_vo_ros.core.spiking.synapses import (
+    ComplexSynapses,
+    drive_many,
+    LayerCounts,
+    scale_kicks,
+)
 
 Complex = NDArray[np.complex128]
 Real = NDArray[np.float64]
+Int = NDArray[np.int64]
 
 LAYERS = ('input', 'similarity', 'threshold', 'cleanup', 'state')
 
@@ -99,7 +105,10 @@ class SpikingCleanup:
         Shapes:
             u: (n,); returns (K,) float64 (>= 0 for the ReLU).
         """
-        a = self._sim.drive(u, self.counts['similarity']).real
+        return self._p(u, self._sim.drive(u, self.counts['similarity']).real)
+
+    def _p(self, u: Spikes, a: Real) -> Real:
+        """``p`` of the similarity neurons' states ``a`` (and the inhibitor's counts)."""
         self.last_similarity = a
         c = self.counts['threshold']
         if self.p is not None:
@@ -128,18 +137,22 @@ class SpikingCleanup:
         Shapes:
             u: (n,); state: (n,); p: (K,).
         """
-        cfg = self.cfg
-        u_sp = encode(u, cfg)
+        return step_many([(self, u, state)])[0]
+
+    def _input(self, u: Complex) -> Spikes:
+        """Layer 1: the input neurons' spikes."""
+        u_sp = encode(u, self.cfg)
         self.last_input = u_sp
         ci = self.counts['input']
         ci.spikes_in += u_sp.count
-        ci.neuron_updates += self.size * cfg.steps_per_cycle
-        p = self.similarity(u_sp)
-        # Similarity neurons fire at the reference phase (t = 0) with graded payload p.
-        p_sp = encode(p.astype(np.complex128), cfg, fire_threshold=0.0)
-        drive = self._out.drive(p_sp, self.counts['cleanup'])
-        # Unit spikes at the phase of X p(a): the phasor projection f.
-        # (a constant full-scale payload 2^B - 1 in units of 2^-B, i.e. ~1).
+        ci.neuron_updates += self.size * self.cfg.steps_per_cycle
+        return u_sp
+
+    def _pairs(self, drive: Complex, state: Spikes | None) -> Spikes:
+        """Layer 3's unit spikes at the phase of ``X p(a)`` (the phasor projection f), paired
+        with each state neuron's own previous spike: the state layer's two inputs."""
+        cfg = self.cfg
+        # (a constant full-scale payload 2^B - 1 in units of 2^-B, i.e. ~1)
         top = (1 << cfg.payload_bits) - 1
         unit_g = np.where(np.abs(drive) > 0.0, np.int64(top), np.int64(0))
         f_sp = Spikes(encode(drive, cfg, fire_threshold=0.0).t, unit_g,
@@ -148,29 +161,25 @@ class SpikingCleanup:
             prev_t, prev_g, prev_exp = f_sp.t, f_sp.g, f_sp.exp
         else:
             prev_t, prev_g, prev_exp = state.t, state.g, state.exp
-        # Each state neuron: inputs (own previous spike, cleanup spike), weights (1-g, g).
         pair_t = np.stack([prev_t, f_sp.t], axis=1)                        # (n, 2)
         # Bring both inputs to the same payload unit before the shared 2-input synapse.
         e = max(prev_exp, f_sp.exp)
         prev_scaled = np.rint(np.ldexp(prev_g.astype(np.float64), prev_exp - e)).astype(np.int64)
         f_scaled = np.rint(np.ldexp(f_sp.g.astype(np.float64), f_sp.exp - e)).astype(np.int64)
         pair_g = np.stack([prev_scaled, f_scaled], axis=1)
-        new = self._mix_drive(Spikes(pair_t, pair_g, e, cfg.steps_per_cycle))
-        out = encode(new, cfg, fire_threshold=0.0)
-        return out, p
+        return Spikes(pair_t, pair_g, e, cfg.steps_per_cycle)
 
-    def _mix_drive(self, pairs: Spikes) -> Complex:
-        """Drive of the state neurons: each sees only its own 2 inputs (vectorised over n)."""
+    def _mix_kicks(self, pairs: Spikes) -> tuple[Int, Int] | None:
+        """Counts of the state layer; its integer kicks (None in float precision)."""
         n = pairs.t.shape[0]
         c = self.counts['state']
         c.spikes_in += int(np.count_nonzero(pairs.g))
         c.synops += int(np.count_nonzero(pairs.g)) * (2 if self.cfg.synapse == 'kick' else 1)
         c.neuron_updates += n * self.cfg.steps_per_cycle
-        w = self._mix.effective[0]                                          # (2,)
         if not self.cfg.quantised:
-            return np.asarray(pairs.decode() @ w, dtype=np.complex128)
-        # Integer path: the closed form of (RF) applied per neuron equals the step loop for
-        # two inputs except for the fixed-point rotation; run the loop on all n neurons at once.
+            return None
+        # The closed form of (RF) per neuron equals the step loop for two inputs except for
+        # the fixed-point rotation; the loop runs on all n neurons at once.
         steps = self.cfg.steps_per_cycle
         q = self._mix._q
         assert q is not None
@@ -186,12 +195,59 @@ class SpikingCleanup:
                 arrive = (pairs.t[:, j] + self._mix._delay[0, j]) % steps
                 np.add.at(kre, (rows, arrive), q.re[0, j] * pairs.g[:, j])
         shift = self._mix._shift
-        re, im, sat = rf_cycle_int(scale_kicks(kre, shift), scale_kicks(kim, shift), self.cfg)
-        c.saturated += sat
-        return np.asarray((re + 1j * im) * 2.0**(q.exp + pairs.exp - shift), dtype=np.complex128)
+        return scale_kicks(kre, shift), scale_kicks(kim, shift)
+
+    def _mix_value(self, pairs: Spikes, ri: tuple[Int, Int] | None) -> Complex:
+        """The state neurons' end-of-cycle value (float closed form, or the integer state)."""
+        if ri is None:
+            return np.asarray(pairs.decode() @ self._mix.effective[0], dtype=np.complex128)
+        q = self._mix._q
+        assert q is not None
+        re, im = ri
+        return np.asarray((re + 1j * im) * 2.0**(q.exp + pairs.exp - self._mix._shift),
+                          dtype=np.complex128)
 
     def reset_counts(self) -> dict[str, LayerCounts]:
         """Return the counts since the last reset and start new ones."""
         out = self.counts
         self.counts = {k: LayerCounts() for k in LAYERS}
         return out
+
+
+def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
+              ) -> list[tuple[Spikes, Real]]:
+    """:meth:`SpikingCleanup.step` of several factors (one shared configuration) in one pass:
+    each layer's integer dynamics run once for the neurons of all factors (the same arithmetic
+    per neuron; the factors' cleanups are independent within an iteration).
+
+    Returns:
+        Per item, ``(state, p)`` as :meth:`SpikingCleanup.step`.
+    """
+    u_sps = [cl._input(u) for cl, u, _ in items]
+    sims = drive_many([(cl._sim, u_sp, cl.counts['similarity'])
+                       for (cl, _, _), u_sp in zip(items, u_sps, strict=True)])
+    ps = [cl._p(u_sp, a.real) for (cl, _, _), u_sp, a in zip(items, u_sps, sims, strict=True)]
+    # Similarity neurons fire at the reference phase (t = 0) with graded payload p.
+    p_sps = [encode(p.astype(np.complex128), cl.cfg, fire_threshold=0.0)
+             for (cl, _, _), p in zip(items, ps, strict=True)]
+    drives = drive_many([(cl._out, p_sp, cl.counts['cleanup'])
+                         for (cl, _, _), p_sp in zip(items, p_sps, strict=True)])
+    pairs = [cl._pairs(d, st) for (cl, _, st), d in zip(items, drives, strict=True)]
+    kicks = [cl._mix_kicks(pr) for (cl, _, _), pr in zip(items, pairs, strict=True)]
+    ints = [k for k in kicks if k is not None]
+    states: list[tuple[Int, Int] | None] = [None] * len(items)
+    if ints:
+        cfg = items[0][0].cfg
+        re, im, sat = rf_cycle_int(np.concatenate([k[0] for k in ints]),
+                                   np.concatenate([k[1] for k in ints]), cfg)
+        items[0][0].counts['state'].saturated += sat
+        start = 0
+        for i, k in enumerate(kicks):
+            if k is not None:
+                n = k[0].shape[0]
+                states[i] = (re[start:start + n], im[start:start + n])
+                start += n
+    out = []
+    for (cl, _, _), pr, ri, p in zip(items, pairs, states, ps, strict=True):
+        out.append((encode(cl._mix_value(pr, ri), cl.cfg, fire_threshold=0.0), p))
+    return out

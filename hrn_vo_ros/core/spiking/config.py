@@ -38,6 +38,14 @@ class SpikingConfig:
     delays up to T - 1 steps, so T - 1 <= ``max_delay`` (<= 62 on Loihi 1).
     """
 
+    transform: str = param(
+        'sparse', "Λ/Λ': sparse = butterfly DFT stages and <= 4-tap log-polar resampling as "
+        'phasor-neuron layers (N log N synapses); dense = float transforms of the spike-coded '
+        'vectors, counted as dense N x N layers (the reference)',
+        choices=('sparse', 'dense'), read_only=True)
+    max_radix: int = param(
+        4, 'largest radix of the sparse butterfly stages (2: more, smaller layers)', lo=2, hi=8,
+        read_only=True)
     precision: str = param(
         'loihi', 'loihi: integer state, quantised weights; float: same spikes, float arithmetic',
         choices=('loihi', 'float'))

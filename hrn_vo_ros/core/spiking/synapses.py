@@ -189,15 +189,22 @@ class ComplexSynapses:
         Shapes:
             spikes: (n_in,); returns (n_out,) complex128.
         """
-        n_out = self._eff.shape[0]
-        steps = self.cfg.steps_per_cycle
+        return drive_many([(self, spikes, counts)])[0]
+
+    def count(self, spikes: Spikes, counts: LayerCounts | None) -> None:
+        """Add one cycle of this connection to ``counts``."""
         if counts is not None:
             fired = spikes.g > 0
             counts.spikes_in += int(fired.sum())
             counts.synops += int(self._nnz_col[fired].sum())
-            counts.neuron_updates += n_out * steps
-        if self._q is None:
-            return np.asarray(self._eff @ spikes.decode(), dtype=np.complex128)
+            counts.neuron_updates += self._eff.shape[0] * self.cfg.steps_per_cycle
+
+    def kicks(self, spikes: Spikes) -> tuple[Int, Int]:
+        """The integer kicks per target neuron and step, shifted into the state
+        (``precision='loihi'`` only). Shapes: (n_out, T) each."""
+        assert self._q is not None
+        n_out = self._eff.shape[0]
+        steps = self.cfg.steps_per_cycle
         g = spikes.g.astype(np.float64)
         if self.cfg.synapse == 'kick':
             onehot = np.zeros((g.shape[0], steps))
@@ -212,12 +219,41 @@ class ComplexSynapses:
             kre = np.rint(np.bincount(idx, wts, n_out * steps)).astype(np.int64)
             kre = kre.reshape(n_out, steps)
             kim = np.zeros_like(kre)
-        re, im, sat = rf_cycle_int(scale_kicks(kre, self._shift), scale_kicks(kim, self._shift),
-                                   self.cfg)
-        if counts is not None:
-            counts.saturated += sat
+        return scale_kicks(kre, self._shift), scale_kicks(kim, self._shift)
+
+    def finish(self, re: Int, im: Int, spikes: Spikes) -> Complex:
+        """The integer end-of-cycle state in value units."""
+        assert self._q is not None
         return np.asarray((re + 1j * im) * 2.0**(self._q.exp + spikes.exp - self._shift),
                           dtype=np.complex128)
+
+
+def drive_many(jobs: list[tuple[ComplexSynapses, Spikes, LayerCounts | None]]) -> list[Complex]:
+    """:meth:`ComplexSynapses.drive` of several connections (one shared configuration): the
+    integer dynamics of all their target neurons run as one population (the same per-neuron
+    arithmetic, one step loop instead of one per connection)."""
+    out: list[Complex | None] = [None] * len(jobs)
+    ints: list[int] = []
+    for i, (syn, sp, counts) in enumerate(jobs):
+        syn.count(sp, counts)
+        if syn._q is None:
+            out[i] = np.asarray(syn._eff @ sp.decode(), dtype=np.complex128)
+        else:
+            ints.append(i)
+    if ints:
+        parts = [jobs[i][0].kicks(jobs[i][1]) for i in ints]
+        cfg = jobs[ints[0]][0].cfg
+        re, im, sat = rf_cycle_int(np.concatenate([p[0] for p in parts]),
+                                   np.concatenate([p[1] for p in parts]), cfg)
+        start = 0
+        for i, p in zip(ints, parts, strict=True):
+            n = p[0].shape[0]
+            syn, sp, counts = jobs[i]
+            if counts is not None:
+                counts.saturated += sat if len(ints) == 1 else 0
+            out[i] = syn.finish(re[start:start + n], im[start:start + n], sp)
+            start += n
+    return [o for o in out if o is not None]
 
 
 def marginal_drive(spikes: Spikes, axis: int, cfg: SpikingConfig,

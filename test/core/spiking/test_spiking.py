@@ -198,8 +198,9 @@ def track(b: SpikingHRN, traj: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize('spiking', [SpikingConfig(),
                                      SpikingConfig(precision='float'),
                                      SpikingConfig(steps_per_cycle=16, weight_bits=4),
-                                     SpikingConfig(steps_per_cycle=63, synapse='delay')],
-                         ids=['loihi32', 'float32', 'loihi16w4', 'delay63'])
+                                     SpikingConfig(steps_per_cycle=63, synapse='delay'),
+                                     SpikingConfig(transform='dense')],
+                         ids=['loihi32', 'float32', 'loihi16w4', 'delay63', 'dense32'])
 @pytest.mark.parametrize('pose', [(4.0, -3.0, 0.0), (0.0, 0.0, 0.35)])
 def test_spiking_hrn_recovers_a_known_shift_and_roll(spiking: SpikingConfig,
                                                      pose: tuple[float, ...]) -> None:
@@ -211,7 +212,10 @@ def test_spiking_hrn_recovers_a_known_shift_and_roll(spiking: SpikingConfig,
     assert np.all(err <= (0.5, 0.5, 0.03)), (est[-1], pose)
     acc = b.account_summary()
     assert acc['spikes'] > 0 and acc['synops'] > acc['spikes']
-    assert acc['steps'] == 9 * spiking.steps_per_cycle
+    # iteration latency: the layers on the critical path (9 in the dense form)
+    depth = 9 if b.transform == 'dense' else b._spiking_engine.resources.depth
+    assert b.transform == spiking.transform
+    assert acc['steps'] == depth * spiking.steps_per_cycle
     raster = b.raster()
     assert raster.shape == (2 * (cfg.width + cfg.height + 96), spiking.steps_per_cycle)
     # Every firing neuron fires once per cycle: at most one non-zero pixel per raster row.
