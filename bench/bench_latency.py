@@ -39,12 +39,12 @@ from nav_msgs.msg import Odometry  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
+from hrn_vo_ros.cli import graph as G  # noqa: E402,N812
 from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  # noqa: E402
 from hrn_vo_ros.io import bags  # noqa: E402
 from hrn_vo_ros.io.convert import convert  # noqa: E402
 from hrn_vo_ros.io.ecd import read_calib, read_events, write_sequence  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs  # noqa: E402
-from hrn_vo_ros.nodes import graph as G  # noqa: E402,N812
 from hrn_vo_ros.nodes.common import qos  # noqa: E402
 
 CONFIG = ROOT / 'config' / 'shapes_rotation.yaml'

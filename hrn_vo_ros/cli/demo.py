@@ -70,7 +70,7 @@ def config_dir() -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; prints the errors and where the files are."""
-    from hrn_vo_ros.nodes.graph import run_graph
+    from hrn_vo_ros.cli.graph import run_graph
 
     out: Path = args.out
     if any((out / d).exists() for d in ('sequence', 'input_bag', 'graph_bag')):
@@ -160,9 +160,9 @@ def convert(dataset: Path, dst: Path) -> Path:
 
 def write_est_csv(bag: Path, dst: Path) -> Path:
     """The recorded raw readouts as an estimate CSV (``hrn-vo run`` columns)."""
+    from hrn_vo_ros.cli.graph import READOUT_TOPIC
     from hrn_vo_ros.io.estimates import write_estimates
     from hrn_vo_ros.io.recording import read_readout_estimates
-    from hrn_vo_ros.nodes.graph import READOUT_TOPIC
 
     ef = read_readout_estimates(bag, READOUT_TOPIC)
     return write_estimates(dst, ef.series, quality=ef.quality, state=ef.state)

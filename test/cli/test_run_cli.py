@@ -288,7 +288,7 @@ def test_dataset_configs_derive_what_run_and_graph_share(dataset: Path) -> None:
 
 
 def test_graph_takes_the_same_dataset_parameters(dataset: Path, tmp_path: Path) -> None:
-    from hrn_vo_ros.nodes.graph import dataset_overrides
+    from hrn_vo_ros.cli.graph import dataset_overrides
     pk, rs = dataset_overrides(dataset, ROOT / 'config/shapes_rotation.yaml', imu=True)
     assert pk['sensor_width'] == 240 and rs['width'] == 96 and rs['imu.enabled'] is True
     assert rs['focal_px'] == rs['odometry.focal_length_px'] == pytest.approx(200.0 / 2.5)

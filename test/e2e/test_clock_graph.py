@@ -1,6 +1,6 @@
 """A driver-like stream through the node processes over DDS: stamps in the header clock, resets.
 
-packetizer_node and resonator_node run as their own processes (as ``nodes/graph.py`` starts
+packetizer_node and resonator_node run as their own processes (as ``cli/graph.py`` starts
 them); a probe node here publishes packets as a live driver does: header stamps near the wall
 clock, sensor time near 0 (the camera's own counter), one far-future packet, then a driver
 restart (sensor time from 0 again while the header clock goes on).
@@ -8,56 +8,38 @@ restart (sensor time from 0 again while the header clock goes on).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
 from event_camera_msgs.msg import EventPacket
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from ros_helpers import spin_until
 from sensor_msgs.msg import Image
+from test_faults import NODE_ARGS, Probe
 
+from hrn_vo_ros.cli.graph import FRAMES_TOPIC, Graph, graph_ros_args, ODOM_TOPIC
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.eventpacket import encode_mono
 from hrn_vo_ros.nodes.common import qos
-from hrn_vo_ros.nodes.graph import EVENTS_TOPIC, FRAMES_TOPIC, Graph, graph_ros_args, ODOM_TOPIC
 
 pytestmark = pytest.mark.ros
 MS = 1_000_000
-PER_FRAME = 200
-NODE_ARGS = ['-p', f'events_per_frame:={PER_FRAME}', '-p', 'sensor_width:=240',
-             '-p', 'sensor_height:=180']
 
 
 def test_driver_stream_is_stamped_in_the_header_clock_and_survives_a_restart(
         tmp_path: Path, rng: np.random.Generator) -> None:
     rclpy.init()
     graph = Graph(tmp_path / 'logs')
-    probe = Node('clock_probe')
+    probe = Probe(Node('clock_probe'))          # publisher, diagnostics and wait of the faults
     frames: list[Image] = []
     odoms: list[Odometry] = []
-    diags: dict[str, dict[str, str]] = {}
-
-    def on_diag(msg: DiagnosticArray) -> None:
-        for st in msg.status:
-            diags[st.name.split(':')[0]] = {kv.key: kv.value for kv in st.values}
-
-    pub = probe.create_publisher(EventPacket, EVENTS_TOPIC, qos(1000))
-    probe.create_subscription(Image, FRAMES_TOPIC, frames.append, qos(10000))
-    probe.create_subscription(Odometry, ODOM_TOPIC, odoms.append, qos(10000))
-    probe.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 100)
-    ex = SingleThreadedExecutor()
-    ex.add_node(probe)
-
-    def wait(cond: Callable[[], bool], timeout: float = 30.0) -> bool:
-        return spin_until(ex, cond, timeout)
+    probe.node.create_subscription(Image, FRAMES_TOPIC, frames.append, qos(10000))
+    probe.node.create_subscription(Odometry, ODOM_TOPIC, odoms.append, qos(10000))
+    pub, diags, wait = probe.pub, probe.diags, probe.wait
 
     sent: list[tuple[int, int]] = []      # header-clock span of each packet
 
@@ -71,16 +53,15 @@ def test_driver_stream_is_stamped_in_the_header_clock_and_survives_a_restart(
         msg.header.stamp = ros_msgs.ns_to_stamp(header0 + int(t[0]) - sensor0)
         msg.events = payload.tobytes()
         sent.append((header0 + int(t[0]) - sensor0, header0 + int(t[-1]) - sensor0))
-        pub.publish(msg)
+        pub.publish(msg)  # type: ignore[attr-defined]
 
     try:
         args = graph_ros_args(None, imu=False, overrides={})
         for name in ('resonator_node', 'packetizer_node'):
             graph.start_module(name, name, args[name] + NODE_ARGS)
-        assert wait(lambda: pub.get_subscription_count() > 0
-                    and probe.count_publishers(ODOM_TOPIC) > 0
-                    and int(diags.get('packetizer_node', {}).get('frames_subscribers', 0)) >= 2,
-                    60.0), diags
+        assert wait(lambda: pub.get_subscription_count() > 0  # type: ignore[attr-defined]
+                    and probe.node.count_publishers(ODOM_TOPIC) > 0
+                    and probe.value('packetizer_node', 'frames_subscribers') >= 2, 60.0), diags
         # Warm up (discovery runs both ways) until an odometry message arrives; those packets
         # continue the same clocks, so they are part of the checked stream.
         h0 = time.time_ns()
@@ -116,11 +97,11 @@ def test_driver_stream_is_stamped_in_the_header_clock_and_survives_a_restart(
                 assert dist <= 5 * MS, f'stamp {s} is {dist / 1e6:.1f} ms off the header clock'
         stamps = [ros_msgs.stamp_to_ns(o.header.stamp) for o in odoms]
         assert stamps == sorted(stamps) and stamps[0] > 10**18  # ROS time, not 1970
-        assert wait(lambda: int(diags.get('packetizer_node', {}).get('clock_resets', 0)) >= 2)
+        assert wait(lambda: probe.value('packetizer_node', 'clock_resets') >= 2)
         assert diags['packetizer_node'].get('bad_time_backwards') is None
         graph.check_alive()
     finally:
         codes = graph.stop(timeout=15.0)
-        probe.destroy_node()
+        probe.node.destroy_node()
         rclpy.try_shutdown()
     assert all(c == 0 for c in codes.values()), codes

@@ -1,7 +1,7 @@
 """Fault injection into the real node graph (processes over DDS) and a SIGKILLed recorder.
 
 packetizer_node and resonator_node run as their own processes (``python -m``, as
-``nodes/graph.py`` starts them); a probe node in this process publishes event packets on the
+``cli/graph.py`` starts them); a probe node in this process publishes event packets on the
 graph's input topic, counts frames and readouts and reads ``/diagnostics``. Each fault is
 followed by good packets, and the test checks that the nodes are alive, that the fault was
 counted in the diagnostics and that output resumed. Every loop and wait is bounded.
@@ -29,12 +29,7 @@ from ros_helpers import spin_until
 from sensor_msgs.msg import Image, JointState
 
 from hrn_vo_ros.cli import recover as recover_cli
-from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.errors import BagError
-from hrn_vo_ros.io import bags, ros_msgs
-from hrn_vo_ros.io.eventpacket import encode_mono
-from hrn_vo_ros.nodes.common import qos
-from hrn_vo_ros.nodes.graph import (
+from hrn_vo_ros.cli.graph import (
     EVENTS_TOPIC,
     FRAMES_TOPIC,
     Graph,
@@ -43,6 +38,11 @@ from hrn_vo_ros.nodes.graph import (
     READOUT_TOPIC,
     ros_args,
 )
+from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.errors import BagError
+from hrn_vo_ros.io import bags, ros_msgs
+from hrn_vo_ros.io.eventpacket import encode_mono
+from hrn_vo_ros.nodes.common import qos
 
 pytestmark = pytest.mark.ros
 PER_FRAME = 200

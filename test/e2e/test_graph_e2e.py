@@ -20,6 +20,7 @@ import pytest
 import rclpy
 from sensor_msgs.msg import Image
 
+from hrn_vo_ros.cli.graph import ODOM_TOPIC, READOUT_TOPIC
 from hrn_vo_ros.cli.main import main as hrn_vo
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence, Trajectory
@@ -28,7 +29,6 @@ from hrn_vo_ros.io.ecd import write_sequence
 from hrn_vo_ros.io.estimates import read_estimates
 from hrn_vo_ros.io.recording import read_readouts
 from hrn_vo_ros.nodes.common import qos
-from hrn_vo_ros.nodes.graph import ODOM_TOPIC, READOUT_TOPIC
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / 'config' / 'shapes_rotation.yaml'

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 import pytest
 
+from hrn_vo_ros.cli.graph import ODOM_TOPIC
 from hrn_vo_ros.cli.main import main as hrn_vo
 from hrn_vo_ros.core.evaluation.protocol import evaluate
 from hrn_vo_ros.core.evaluation.series import EstimateSeries
@@ -22,7 +23,6 @@ from hrn_vo_ros.io.bags import iter_messages, open_bag, typestore
 from hrn_vo_ros.io.ecd import read_calib, read_groundtruth
 from hrn_vo_ros.io.estimates import read_estimates
 from hrn_vo_ros.io.yamlconfig import load_sections
-from hrn_vo_ros.nodes.graph import ODOM_TOPIC
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / 'config' / 'shapes_translation.yaml'
