@@ -35,7 +35,18 @@ _NS_PER = {'s': 1_000_000_000, 'ms': 1_000_000, 'us': 1_000, 'ns': 1}
 
 
 def _columns(path: Path) -> tuple[NDArray[np.generic], ...]:
-    """(t, x, y, p) arrays (memory-mapped for .npy) of an event file."""
+    """(t, x, y, p) arrays (memory-mapped for .npy) of an event file: 1-D, of one length."""
+    cols = _raw_columns(path)
+    shapes = [c.shape for c in cols]
+    if any(len(s) != 1 for s in shapes) or len(set(shapes)) != 1:
+        raise DatasetError('columns t, x, y, p have shapes '
+                           f'{", ".join(str(s) for s in shapes)}: each must be one value per '
+                           'event, all of one length', path=path)
+    return cols
+
+
+def _raw_columns(path: Path) -> tuple[NDArray[np.generic], ...]:
+    """(t, x, y, p) arrays as stored, any shape."""
     if not path.is_file():
         raise DatasetError('does not exist: give a .npy or .npz event file', path=path)
     try:

@@ -45,6 +45,16 @@ def test_bad_event_files(tmp_path: Path) -> None:
     (tmp_path / 'cut.npy').write_bytes((tmp_path / 'big.npy').read_bytes()[:100])
     with pytest.raises(DatasetError, match='cannot read NumPy'):
         read_all(tmp_path / 'cut.npy')
+    # a sub-array field ('1u2' is x of shape (1,) per event) and columns of unequal length
+    sub = np.zeros(3, np.dtype([('x', '1u2'), ('y', '<u2'), ('p', '<i2'), ('t', '<i8')]))
+    np.save(tmp_path / 'sub.npy', sub)
+    np.savez(tmp_path / 'ragged.npz', t=np.arange(3), x=np.zeros(2), y=np.zeros(3),
+             p=np.zeros(3))
+    for name in ('sub.npy', 'ragged.npz'):
+        with pytest.raises(DatasetError, match='each must be one value per event'):
+            read_all(tmp_path / name)
+        with pytest.raises(DatasetError, match='each must be one value per event'):
+            npy.npy_event_count(tmp_path / name)
 
 
 def test_trajectory_file(tmp_path: Path) -> None:
