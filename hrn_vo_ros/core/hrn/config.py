@@ -152,6 +152,16 @@ class ImuConfig:
                             'through focal_px) is rejected: the states keep the prediction '
                             'and the map is not updated, so one bad frame cannot slip the map',
                             lo=0.0, hi=180.0)
+    max_correction_deg_s: float = param(0.0, 'largest correction of the gyro prediction by a '
+                                        'readout, deg per second of frame time (0: off): a '
+                                        'larger difference is cut to it (states moved to the '
+                                        'cut readout), so the frames can only remove gyro '
+                                        'bias and scale errors and a frozen readout cannot '
+                                        'hold the track back', lo=0.0, hi=1.0e4)
+    max_correction_fraction: float = param(0.0, 'the correction limit grows by this fraction '
+                                           "of the frame's gyro rotation (gyro scale and "
+                                           'axis errors grow with the motion; used with '
+                                           'max_correction_deg_s > 0)', lo=0.0, hi=10.0)
     camera_from_imu: tuple[float, ...] = param(
         (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
         'rotation IMU axes -> camera axes (x right, y down, z forward), row-major 3x3',

@@ -115,6 +115,8 @@ class HRN:
         self._out = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
+        self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
+        self._t_prev: int | None = None  # time of the previous frame (ns)
         self._prev: dict[str, float] | None = None  # readout of the last valid frame
         self._velocity: dict[str, float] | None = None   # smoothed readout change per frame
         self.state = 'tracking'         # tracking / degraded / lost (tracking section)
@@ -258,6 +260,8 @@ class HRN:
             eng.start(canvas, self.rng)
             self._started = True
         predicted, held, shift = self._predict(first, gyro_delta)
+        dt_s = 0.0 if self._t_prev is None else max(t_ns - self._t_prev, 0) * 1e-9
+        self._t_prev = t_ns
         # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
         prior = ({k: x.copy() for k, x in eng.state.items()} if c.tracking.enabled
                  and c.tracking.hold_gain > -1.0 and not first else None)
@@ -266,7 +270,10 @@ class HRN:
         sims, point, spread, peak = self._resonate(S)
         rejected = False
         if predicted is not None:
-            sims, point, rejected = self._gate_imu(point, predicted, held, sims)
+            assert gyro_delta is not None       # a prediction is made from the gyro only
+            gyro_deg = math.degrees(float(np.linalg.norm(gyro_delta)))
+            sims, point, rejected = self._gate_imu(point, predicted, held, sims, dt_s,
+                                                   gyro_deg)
         learn = c.map.learn and self.iteration > c.map.block_iterations and not rejected
         target: Any = None
         if c.tracking.enabled and not first:
@@ -305,7 +312,7 @@ class HRN:
         shift: dict[str, float] = {}
         if not first and gyro_delta is not None:       # the gyro, else the velocity predicts
             shift = self._imu_predict(gyro_delta)
-            if c.imu.gate_deg > 0.0:
+            if c.imu.gate_deg > 0.0 or c.imu.max_correction_deg_s > 0.0:
                 predicted = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
                 held = {k: x.copy() for k, x in eng.state.items()}
         elif c.cleanup.predict_velocity > 0.0:         # no-op until two valid frames
@@ -327,13 +334,29 @@ class HRN:
         return sims, point, spread, peak
 
     def _gate_imu(self, point: dict[str, float], predicted: dict[str, float],
-                  held: dict[str, Any], sims: dict[str, Real]
+                  held: dict[str, Any], sims: dict[str, Real], dt_s: float,
+                  gyro_deg: float
                   ) -> tuple[dict[str, Real], dict[str, float], bool]:
         """The innovation gate: a readout too far from the gyro's prediction is replaced by the
-        prediction (states restored). Returns (sims, point, rejected)."""
+        prediction (states restored); one within the gate but beyond the correction limit
+        (``imu.max_correction_deg_s`` x the frame interval) is cut back to it along the same
+        direction (the predicted states shifted by the cut difference).
+        Returns (sims, point, rejected)."""
         c, eng = self.cfg, self._engine
         self.innovation_deg = self._innovation_deg(point, predicted)
-        if self.innovation_deg <= c.imu.gate_deg:
+        if c.imu.gate_deg <= 0.0 or self.innovation_deg <= c.imu.gate_deg:
+            limit = c.imu.max_correction_deg_s * dt_s + c.imu.max_correction_fraction * gyro_deg
+            if c.imu.max_correction_deg_s > 0.0 and self.innovation_deg > limit:
+                books = eng.books
+                cut = limit / self.innovation_deg
+                eng.state.update(held)
+                moved = {}
+                for k in point:
+                    d = books[k].wrap(point[k] - predicted[k]) * cut
+                    eng.shift(k, d)
+                    moved[k] = books[k].wrap(predicted[k] + d)
+                self.limited_frames += 1
+                return eng.similarities(), moved, False
             return sims, point, False
         self.rejected_frames += 1
         eng.state.update(held)

@@ -380,3 +380,33 @@ def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float) -> None
     after = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 31, gyro_delta=still)
     if gate:
         assert abs(after.h) < 0.5 and abs(after.r) < 0.02
+
+
+def test_imu_correction_limit_cuts_the_readout_to_the_rate_times_the_frame_interval() -> None:
+    """The camera steps 1 px right while the gyro says 'still': with
+    ``max_correction_deg_s`` 20 and frames 10 ms apart, each readout moves at most 0.2 deg,
+    f tan(0.2 deg) = 0.279 px, from the prediction, so the estimate walks to the new pose in
+    such steps; without the limit it jumps in one frame."""
+    step = FOCAL * np.tan(np.radians(0.2))
+    for limit in (0.0, 20.0):
+        rng = np.random.default_rng(4)
+        scene = random_scene(rng)
+        hrn = make({'map': {'block_iterations': 0, 'mu1': 0.985, 'mu2': 0.0075},
+                    'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
+                    'focal_px': FOCAL, 'imu': {'gate_deg': 5.0,
+                                               'max_correction_deg_s': limit}})
+        still = np.zeros(3)
+        for i in range(30):
+            last = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 10_000_000,
+                            gyro_delta=still)
+        assert hrn.limited_frames == 0
+        hs = [last.h] + [hrn.step(event_frame(scene, (1.0, 0.0, 0.0, 0.0), rng),
+                                  (30 + i) * 10_000_000, gyro_delta=still).h
+                         for i in range(12)]
+        if limit:
+            assert np.diff(hs[:4]) == pytest.approx([step] * 3, abs=0.005)
+            assert hrn.limited_frames == 3
+        else:
+            assert hs[1] == pytest.approx(1.0, abs=0.1)
+            assert hrn.limited_frames == 0
+        assert hs[-1] == pytest.approx(1.0, abs=0.08)
