@@ -216,7 +216,8 @@ class LiveOdometry:
                  ('gyro_samples', len(self.gate.gyro)),
                  ('output_subscribers', output_subscribers),
                  ('odom_subscribers', odom_subscribers),
-                 ('imu_rejected_frames', self.pipeline.estimator.rejected_frames)]
+                 ('imu_rejected_frames', self.pipeline.estimator.rejected_frames),
+                 ('imu_limited_frames', self.pipeline.estimator.limited_frames)]
                 + self.composer.diagnostic_values()
                 + [('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
 

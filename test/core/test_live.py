@@ -24,6 +24,7 @@ class Scripted:
 
     factors = ('h', 'v', 'r')
     rejected_frames = 0
+    limited_frames = 0
 
     def __init__(self, fail_at: int = -1) -> None:
         self.steps: list[tuple[int, bool]] = []
@@ -160,5 +161,6 @@ def test_diagnostic_values_keys() -> None:
     values = dict(lo.diagnostic_values('1.0', 2, 1))
     assert values['output_subscribers'] == 2 and values['odom_subscribers'] == 1
     assert values['pending_frames'] == 0 and values['imu_rejected_frames'] == 0
+    assert values['imu_limited_frames'] == 0
     assert values['quality'] == '1.000' and values['clock_resets'] == 0
     assert list(values)[0] == 'frame_rate_hz'

@@ -215,6 +215,7 @@ class Scripted:
 
     factors = ('h', 'v', 'r')
     rejected_frames = 0
+    limited_frames = 0
 
     def __init__(self, script: list[tuple[float, str]]) -> None:
         self.script = script

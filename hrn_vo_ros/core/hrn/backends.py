@@ -38,6 +38,7 @@ class ResonatorBackend(Protocol):
     factors: tuple[str, ...]
     iteration: int
     rejected_frames: int      # frames rejected by the IMU innovation gate (imu.gate_deg)
+    limited_frames: int       # readouts cut by the IMU correction limit (imu.max_correction_*)
 
     def step(self, image: NDArray[Any], t_ns: int, *,
              gyro_delta: NDArray[Any] | None = None) -> Estimate:
