@@ -337,32 +337,32 @@ class HRN:
                   held: dict[str, Any], sims: dict[str, Real], dt_s: float,
                   gyro_deg: float
                   ) -> tuple[dict[str, Real], dict[str, float], bool]:
-        """The innovation gate: a readout too far from the gyro's prediction is replaced by the
-        prediction (states restored); one within the gate but beyond the correction limit
-        (``imu.max_correction_deg_s`` x the frame interval) is cut back to it along the same
+        """The innovation gate and the correction limit, against the gyro's prediction.
+
+        A readout beyond ``imu.gate_deg`` is replaced by the prediction (states restored); one
+        within the gate but beyond the limit ``imu.max_correction_deg_s * dt_s +
+        imu.max_correction_fraction * gyro_deg`` is cut back to the limit along its own
         direction (the predicted states shifted by the cut difference).
         Returns (sims, point, rejected)."""
         c, eng = self.cfg, self._engine
+        books = eng.books
         self.innovation_deg = self._innovation_deg(point, predicted)
-        if c.imu.gate_deg <= 0.0 or self.innovation_deg <= c.imu.gate_deg:
-            limit = c.imu.max_correction_deg_s * dt_s + c.imu.max_correction_fraction * gyro_deg
-            if c.imu.max_correction_deg_s > 0.0 and self.innovation_deg > limit:
-                books = eng.books
-                cut = limit / self.innovation_deg
-                eng.state.update(held)
-                moved = {}
-                for k in point:
-                    d = books[k].wrap(point[k] - predicted[k]) * cut
-                    eng.shift(k, d)
-                    moved[k] = books[k].wrap(predicted[k] + d)
-                self.limited_frames += 1
-                return eng.similarities(), moved, False
+        if c.imu.gate_deg > 0.0 and self.innovation_deg > c.imu.gate_deg:
+            self.rejected_frames += 1
+            eng.state.update(held)
+            return eng.similarities(), {k: books[k].wrap(predicted[k]) for k in point}, True
+        limit = c.imu.max_correction_deg_s * dt_s + c.imu.max_correction_fraction * gyro_deg
+        if c.imu.max_correction_deg_s <= 0.0 or self.innovation_deg <= limit:
             return sims, point, False
-        self.rejected_frames += 1
+        cut = limit / self.innovation_deg
         eng.state.update(held)
-        sims = eng.similarities()
-        point = {k: eng.books[k].wrap(predicted[k]) for k in point}
-        return sims, point, True
+        moved = {}
+        for k in point:
+            d = books[k].wrap(point[k] - predicted[k]) * cut
+            eng.shift(k, d)
+            moved[k] = books[k].wrap(predicted[k] + d)
+        self.limited_frames += 1
+        return eng.similarities(), moved, False
 
     def _assess(self, S: Any, point: dict[str, float], spread: dict[str, float],
                 peak: dict[str, float], sims: dict[str, Real], prior: dict[str, Any] | None,
