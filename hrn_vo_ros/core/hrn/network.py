@@ -112,7 +112,8 @@ class HRN:
         self._started = False
         self._point = dict.fromkeys(self.factors, 0.0)          # index units, wrapped
         self._last: Estimate | None = None
-        self._out = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
+        self._raw = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
+        self._out = dict(self._raw)     # the output: _raw, or the held pose (_emit)
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
         self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
@@ -297,7 +298,7 @@ class HRN:
         if not usable:
             return None
         if self._sphere is not None and self._started:   # the last pose's non-rigid part
-            img = self._sphere.warp(img, self._out['h'], self._out['v'], self._out['r'])
+            img = self._sphere.warp(img, self._raw['h'], self._raw['v'], self._raw['r'])
             if not img.any():             # every event warped off the frame: nothing to use
                 return None
         return img, int(np.count_nonzero(img))
@@ -491,18 +492,22 @@ class HRN:
     def _emit(self, t_ns: int, point: dict[str, float], spread: dict[str, float],
               peak: dict[str, float], sims: dict[str, Real], updated: bool) -> Estimate:
         books = self._engine.books
-        if self.state == 'lost' and self._held is not None:
-            self._out.update(self._held)        # hold the last good pose, never wander
-        else:
-            for name, idx in point.items():
-                b = books[name]
-                val = b.sign * b.unit * idx
-                if b.period is not None:            # unwrap against the previous output
-                    prev = self._out[name]
-                    val = prev + centred_mod(val - prev, b.period * b.unit)
-                self._out[name] = val
-            if self.state == 'tracking':
-                self._held = dict(self._out)
+        # the network's own pose (unwrapped against the last tracked one, so that the wild
+        # readouts of poor frames cannot carry it a whole canvas or turn away) ...
+        ref = self._held if self._held is not None else self._raw
+        for name, idx in point.items():
+            b = books[name]
+            val = b.sign * b.unit * idx
+            if b.period is not None:
+                prev = ref[name]
+                val = prev + centred_mod(val - prev, b.period * b.unit)
+            self._raw[name] = val
+        # ... and the output: the last tracked pose while lost or on a poor degraded frame
+        poor = self.state == 'lost' or (self.state == 'degraded'
+                                        and self.quality < self.cfg.tracking.degrade)
+        self._out.update(self._held if poor and self._held is not None else self._raw)
+        if self.state == 'tracking':
+            self._held = dict(self._raw)
         est = Estimate(t_ns=int(t_ns), h=self._out['h'], v=self._out['v'], r=self._out['r'],
                        z=self._out['z'], confidence=peak, spread=spread,
                        iteration=self.iteration, map_updated=updated, similarity=sims,
