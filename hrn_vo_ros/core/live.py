@@ -217,7 +217,9 @@ class LiveOdometry:
                  ('output_subscribers', output_subscribers),
                  ('odom_subscribers', odom_subscribers),
                  ('imu_rejected_frames', self.pipeline.estimator.rejected_frames),
-                 ('imu_limited_frames', self.pipeline.estimator.limited_frames)]
+                 ('imu_limited_frames', self.pipeline.estimator.limited_frames),
+                 ('hot_pixels', self.pipeline.estimator.hot_pixels),
+                 ('distinctiveness', f'{self.pipeline.estimator.distinct:.1f}')]
                 + self.composer.diagnostic_values()
                 + [('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
 

@@ -25,6 +25,8 @@ class Scripted:
     factors = ('h', 'v', 'r')
     rejected_frames = 0
     limited_frames = 0
+    hot_pixels = 3
+    distinct = 12.54
 
     def __init__(self, fail_at: int = -1) -> None:
         self.steps: list[tuple[int, bool]] = []
@@ -162,5 +164,6 @@ def test_diagnostic_values_keys() -> None:
     assert values['output_subscribers'] == 2 and values['odom_subscribers'] == 1
     assert values['pending_frames'] == 0 and values['imu_rejected_frames'] == 0
     assert values['imu_limited_frames'] == 0
+    assert values['hot_pixels'] == 3 and values['distinctiveness'] == '12.5'
     assert values['quality'] == '1.000' and values['clock_resets'] == 0
     assert list(values)[0] == 'frame_rate_hz'

@@ -216,6 +216,8 @@ class Scripted:
     factors = ('h', 'v', 'r')
     rejected_frames = 0
     limited_frames = 0
+    hot_pixels = 0
+    distinct = float('nan')
 
     def __init__(self, script: list[tuple[float, str]]) -> None:
         self.script = script

@@ -212,6 +212,14 @@ class TrackingConfig:
                                'overlap term and this sharpness term)', lo=0.0, hi=1.0)
     sharp_full: float = param(0.5, 'lowest peak similarity at or above which the sharpness '
                               'term is 1 (<= sharp_floor: no sharpness term)', lo=0.0, hi=1.0)
+    psr_floor: float = param(6.0, 'distinctiveness (peak-to-sidelobe ratio of the frame-map '
+                             'correlation at the estimate, smoothed) at or below which the '
+                             'quality is 0: a frame that matches the map no better at its '
+                             'estimate than elsewhere (chance gives about 4-7)', lo=0.0, hi=1e3)
+    psr_full: float = param(10.0, 'distinctiveness at or above which its quality term is 1 '
+                            '(<= psr_floor: no distinctiveness term)', lo=0.0, hi=1e3)
+    psr_rate: float = param(0.2, 'rate of the exponential average of the distinctiveness '
+                            '(1: the frame alone)', lo=0.001, hi=1.0)
     hold_gain: float = param(0.15, 'a sparse frame (hold_density) of quality below degrade '
                              'moves the states only if its quality exceeds that of the '
                              'predicted pose by this much; else the states keep the prediction '
@@ -251,6 +259,13 @@ class ResonatorConfig:
     max_fill: float = param(0.3, 'frames with a larger fraction of pixels on are noise (a '
                             'still camera fills fixed-count packets with noise) and are skipped '
                             'like empty ones; 1 keeps all', lo=0.0, hi=1.0)
+    hot_pixel_rate: float = param(0.05, 'rate of the running on-fraction of every frame pixel '
+                                  '(an exponential average over frames; 0: no hot-pixel mask)',
+                                  lo=0.0, hi=1.0)
+    hot_pixel_on: float = param(0.9, 'pixels on in more than this running fraction of the '
+                                'frames are hot (or flickering) and masked: an edge that moves '
+                                'with the camera cannot stay on one pixel for most packets',
+                                lo=0.0, hi=1.0)
     focal_px: float = param(0.0, 'focal length in frame pixels (fx / downsample), for the IMU '
                             'prediction (pan/tilt -> h, v) and the sphere correction; 0: the '
                             'caller derives it from the calibration', lo=0.0, hi=100_000.0,

@@ -208,6 +208,10 @@ class DenseEngine:
         nm = float(np.linalg.norm(self.m)) * float(np.linalg.norm(target))
         return float(np.vdot(self.m, target).real) / nm if nm > 0.0 else 0.0
 
+    def distinctiveness(self, target: NDArray[np.complexfloating]) -> float:
+        """Not computed by the reference path (NaN: the quality has no distinctiveness term)."""
+        return math.nan
+
     def update_map(self, S: NDArray[np.complexfloating], point: dict[str, float], mu1: float,
                    mu2: float, target: NDArray[np.complexfloating] | None = None) -> None:
         t = self.map_target(S, point) if target is None else target

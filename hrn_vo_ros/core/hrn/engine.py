@@ -78,6 +78,11 @@ class Engine(Protocol):
         """Normalised overlap of the map with a :meth:`map_target`, in [-1, 1]."""
         ...
 
+    def distinctiveness(self, target: Any) -> float:
+        """How much better the map matches a :meth:`map_target` at the estimate than at other
+        shifts (a peak-to-sidelobe ratio); NaN where the engine does not compute it."""
+        ...
+
     def update_map(self, S: Any, point: dict[str, float], mu1: float, mu2: float,
                    target: Any = None) -> None:
         """The anchored map update ``m̂ ← μ1 m̂ + μ2 m̂(0) + (1-μ1-μ2) m(t)`` at ``point``

@@ -24,6 +24,8 @@ from hrn_vo_ros.core.hrn.shared import (
     Floats,
     highpass_weights,
     normalised_similarity,
+    peak_to_sidelobe,
+    PSR_EXCLUDE,
     Real,
     Spectrum,
     state_gamma,
@@ -308,6 +310,11 @@ class FastEngine:
         non-negative; no low frequencies: the frame's support window overlaps the map at any
         pose); 0 for a blank frame."""
         return weighted_overlap(self.m, target, self._ov_w)
+
+    def distinctiveness(self, target: Spectrum) -> float:
+        """Peak-to-sidelobe ratio of the frame-map correlation at the estimate
+        (:func:`~hrn_vo_ros.core.hrn.shared.peak_to_sidelobe`, high-passed as the overlap)."""
+        return peak_to_sidelobe(self._mc, target, self._ov_w, PSR_EXCLUDE)
 
     def relocalise(self, S: Spectrum, rolls: int, z: float, keep: int
                    ) -> list[tuple[float, dict[str, float]]]:

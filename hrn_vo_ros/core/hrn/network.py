@@ -127,9 +127,13 @@ class HRN:
         self.held_frames = 0            # poor frames whose update was undone (hold_gain)
         self._density: float | None = None   # running mean on-pixel count of tracked frames
         self._ref: float | None = None  # running reference overlap o_ref
+        self._psr: float | None = None  # smoothed distinctiveness (tracking.psr_rate)
+        self.distinct = math.nan        # its last value (NaN: not computed)
         self._good_run = 0              # consecutive frames of quality >= recover
         self._bad_run = 0               # consecutive frames of quality < degrade
         self._held: dict[str, float] | None = None   # output of the last tracking frame
+        self._on_frac = np.zeros((self.cfg.height, self.cfg.width))  # running on-fraction
+        self.hot_pixels = 0             # on pixels masked as hot in the last frame
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -261,6 +265,7 @@ class HRN:
             eng.start(canvas, self.rng)
             self._started = True
         predicted, held, shift = self._predict(first, gyro_delta)
+        gyro = gyro_delta is not None and not first     # the gyro predicted this frame
         dt_s = 0.0 if self._t_prev is None else max(t_ns - self._t_prev, 0) * 1e-9
         self._t_prev = t_ns
         # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
@@ -279,7 +284,7 @@ class HRN:
         target: Any = None
         if c.tracking.enabled and not first:
             point, spread, peak, sims, target = self._assess(
-                S, point, spread, peak, sims, prior, prior_point, n_on, rejected)
+                S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro)
         self._point = point
         self._follow(point, n_on)
         updated = False
@@ -287,7 +292,7 @@ class HRN:
                                                  and self.quality >= c.tracking.map_quality)):
             eng.update_map(S, point, c.map.mu1, c.map.mu2, target)
             updated = True
-        return self._emit(t_ns, point, spread, peak, sims, updated)
+        return self._emit(t_ns, point, spread, peak, sims, updated, gyro=gyro)
 
     # -- the steps of a frame ---------------------------------------------------------------
 
@@ -297,11 +302,32 @@ class HRN:
         img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'resonator')
         if not usable:
             return None
+        img = self._mask_hot(img)
+        if not img.any():
+            return None
         if self._sphere is not None and self._started:   # the last pose's non-rigid part
             img = self._sphere.warp(img, self._raw['h'], self._raw['v'], self._raw['r'])
             if not img.any():             # every event warped off the frame: nothing to use
                 return None
         return img, int(np.count_nonzero(img))
+
+    def _mask_hot(self, img: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Zero the pixels that were on in more than ``hot_pixel_on`` of the recent frames
+        (hot or flickering pixels stay put while the scene moves: left in, they pull the
+        estimate towards standing still), then update the running on-fraction. A frame whose
+        on pixels would be mostly masked is a still view of real edges (frames made without
+        motion), not hot pixels, and is left whole."""
+        a = self.cfg.hot_pixel_rate
+        if a <= 0.0:
+            return img
+        f = self._on_frac
+        on = img > 0.0
+        hot = (f > self.cfg.hot_pixel_on) & on
+        f *= 1.0 - a
+        f += a * on
+        n_hot = int(np.count_nonzero(hot))
+        self.hot_pixels = n_hot if 2 * n_hot <= int(np.count_nonzero(on)) else 0
+        return np.where(hot, 0.0, img) if self.hot_pixels else img
 
     def _predict(self, first: bool, gyro_delta: NDArray[Any] | None
                  ) -> tuple[dict[str, float] | None, dict[str, Any], dict[str, float]]:
@@ -367,7 +393,7 @@ class HRN:
 
     def _assess(self, S: Any, point: dict[str, float], spread: dict[str, float],
                 peak: dict[str, float], sims: dict[str, Real], prior: dict[str, Any] | None,
-                prior_point: dict[str, float], n_on: int, rejected: bool
+                prior_point: dict[str, float], n_on: int, rejected: bool, gyro: bool
                 ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
                            dict[str, Real], Any]:
         """Quality, the hold of poor sparse frames, the state, and re-localisation when lost.
@@ -394,11 +420,14 @@ class HRN:
                 self.held_frames += 1
             else:
                 self.overlap = o1
-        self._track_state(min(q, self._sharpness(peak)))
+        self._track_state(min(q, self._sharpness(peak), self._distinct(target)))
         if self.state == 'lost' and c.tracking.relocalise:
+            kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
             found = self._relocalise(S, point)
             if found is not None:
                 point, spread, peak, sims, target = found
+            elif kept is not None:      # the gyro carries the states: no unaccepted restart
+                eng.state.update(kept)
         return point, spread, peak, sims, target
 
     def _follow(self, point: dict[str, float], n_on: int) -> None:
@@ -434,6 +463,29 @@ class HRN:
             return 1.0
         c = min(peak.get(k, 1.0) for k in ('h', 'v', 'r'))
         return min(max((c - tc.sharp_floor) / (tc.sharp_full - tc.sharp_floor), 0.0), 1.0)
+
+    def _distinct(self, target: Any) -> float:
+        """Quality term of the frame's distinctiveness against the map (its smoothed
+        peak-to-sidelobe ratio at the estimate): a frame of noise, or a texture finer than the
+        frame's pixels, overlaps a map learned at its own (wrong) poses as well as ever, but it
+        matches there no better than at any other shift."""
+        tc = self.cfg.tracking
+        if tc.psr_full <= tc.psr_floor:
+            return 1.0
+        r = self._engine.distinctiveness(target)
+        if not math.isfinite(r):
+            return 1.0
+        d = self._psr
+        self._psr = d = r if d is None else d + tc.psr_rate * (r - d)
+        self.distinct = d
+        return self._psr_term(d)
+
+    def _psr_term(self, psr: float) -> float:
+        """A distinctiveness (peak-to-sidelobe ratio) as a quality term in [0, 1]."""
+        tc = self.cfg.tracking
+        if tc.psr_full <= tc.psr_floor or not math.isfinite(psr):
+            return 1.0
+        return min(max((psr - tc.psr_floor) / (tc.psr_full - tc.psr_floor), 0.0), 1.0)
 
     def _track_state(self, q: float) -> None:
         """The state machine with hysteresis (``docs/model.md``, tracking section)."""
@@ -479,7 +531,10 @@ class HRN:
         if best is None:
             return None
         eng.state.update(best[1])
-        q = self._quality(best[0])
+        # a restart must also match the map at its pose distinctly (not noise, not a texture
+        # that matches anywhere)
+        q = min(self._quality(best[0]),
+                self._psr_term(eng.distinctiveness(best[2][4])))
         if q < tc.relock:
             self.quality = q
             return None
@@ -490,7 +545,8 @@ class HRN:
         return pt, spread, peak, sims, target
 
     def _emit(self, t_ns: int, point: dict[str, float], spread: dict[str, float],
-              peak: dict[str, float], sims: dict[str, Real], updated: bool) -> Estimate:
+              peak: dict[str, float], sims: dict[str, Real], updated: bool, *,
+              gyro: bool = False) -> Estimate:
         books = self._engine.books
         # the network's own pose (unwrapped against the last tracked one, so that the wild
         # readouts of poor frames cannot carry it a whole canvas or turn away) ...
@@ -502,9 +558,10 @@ class HRN:
                 prev = ref[name]
                 val = prev + centred_mod(val - prev, b.period * b.unit)
             self._raw[name] = val
-        # ... and the output: the last tracked pose while lost or on a poor degraded frame
-        poor = self.state == 'lost' or (self.state == 'degraded'
-                                        and self.quality < self.cfg.tracking.degrade)
+        # ... and the output: the last tracked pose while lost or on a poor degraded frame,
+        # unless the gyro carried the states (its prediction is a measurement of the motion)
+        poor = not gyro and (self.state == 'lost' or (
+            self.state == 'degraded' and self.quality < self.cfg.tracking.degrade))
         self._out.update(self._held if poor and self._held is not None else self._raw)
         if self.state == 'tracking':
             self._held = dict(self._raw)

@@ -149,7 +149,8 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
             'codebook': {'canvas_width': 36, 'canvas_height': 26},
             'map': {'block_iterations': 10}, 'scale': {'enabled': scale},
             'readout': {'refine': refine},
-            'tracking': {'overlap_highpass': 1.0}}     # (3 bins on 128x96 canvases)
+            'tracking': {'overlap_highpass': 1.0,      # (3 bins on 128x96 canvases)
+                         'psr_full': 0.0}}   # the dense path has no distinctiveness term
     if refine:      # and the other switches of the shipped configs
         base['codebook'] = {**base['codebook'], 'kernel_sigma': 0.7}   # type: ignore[dict-item]
         base['cleanup'] = {'predict_velocity': 1.0, 'iterations_per_frame': 2}
@@ -181,7 +182,8 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
 
 def test_dense_path_with_random_codebooks_recovers_a_shift() -> None:
     over = {'width': 32, 'height': 24, 'path': 'dense', 'logpolar': {'n_theta': 32, 'n_rho': 24},
-            'codebook': {'kind': 'random', 'dim': 1024}, 'map': {'learn': False}}
+            'codebook': {'kind': 'random', 'dim': 1024}, 'map': {'learn': False},
+            'hot_pixel_rate': 0.0}     # 40 views of one pose: every edge would count as hot
     traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [(2.0, -1.5, 0.0, 0.0)] * 40)
     rng = np.random.default_rng(5)
     scene = random_scene(rng, size=100, n_shapes=40)

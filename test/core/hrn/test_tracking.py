@@ -293,3 +293,109 @@ def test_a_glitch_does_not_unwrap_the_pose_a_canvas_away() -> None:
     assert after[-1].state == 'tracking'
     assert abs(after[-1].h - last[0]) < 1.5 and abs(after[-1].v - last[1]) < 1.5, \
         (after[-1].h, after[-1].v, last)
+
+
+def test_peak_to_sidelobe_of_a_hand_built_correlation() -> None:
+    """A cross-power whose half-resolution correlation is known in closed form: a peak A at
+    shift 0 plus a cosine of 3 cycles across the 64 columns, amplitude 2B/N (N = 48 x 64)."""
+    from hrn_vo_ros.core.hrn.shared import peak_to_sidelobe
+    A, B, n = 5.0, 900.0, 48 * 64
+    t = np.zeros((96, 128), np.complex128)
+    t[:24, :33] = A                   # the kept lower frequencies: a constant is a delta
+    t[72:, :33] = A
+    t[0, 3] += B                      # (ky, kx) = (0, 3), with its implied conjugate at -3
+    ones = np.ones((96, 128))
+    y, x = np.mgrid[0:48, 0:64]
+    corr = A * ((x == 0) & (y == 0)) + 2.0 * B / n * np.cos(2.0 * np.pi * 3.0 * x / 64.0)
+    dy, dx = np.minimum(y, 48 - y), np.minimum(x, 64 - x)
+    for exclude in (1, 2):
+        side = corr[~((dy <= exclude) & (dx <= exclude))]
+        want = (corr[0, 0] - side.mean()) / side.std()
+        assert peak_to_sidelobe(ones, t, ones, exclude) == pytest.approx(want, rel=1e-9)
+
+
+def test_peak_to_sidelobe_is_high_only_at_the_pose() -> None:
+    from scipy import ndimage
+
+    from hrn_vo_ros.core.hrn.shared import highpass_weights, peak_to_sidelobe, PSR_EXCLUDE
+    rng = np.random.default_rng(3)
+    img = np.zeros((96, 128))
+    img[rng.integers(0, 96, 300), rng.integers(0, 128, 300)] = 1.0
+    img = ndimage.gaussian_filter(img, 0.7, mode='wrap')
+    m = np.fft.fft2(img)
+    w = highpass_weights(96, 128, 3.0)
+    other = np.fft.fft2(ndimage.gaussian_filter((rng.random((96, 128)) < 0.03) * 1.0, 0.7))
+    assert peak_to_sidelobe(m.conj(), m, w, PSR_EXCLUDE) > 30.0
+    for t in (np.fft.fft2(np.roll(img, 5, axis=1)), other):
+        assert abs(peak_to_sidelobe(m.conj(), t, w, PSR_EXCLUDE)) < 4.0
+
+
+def test_noise_frames_are_flagged_by_their_distinctiveness() -> None:
+    """Frames of pure noise from the first one on: flagged, and their distinctiveness is below
+    its floor (the overlap's reference is set by the same noise)."""
+    rng = np.random.default_rng(0)
+    frames = [(rng.random((72, 96)) < 0.04).astype(np.uint8) for _ in range(40)]
+    noisy = make()
+    est = [noisy.step(f, i * 5_000_000) for i, f in enumerate(frames)]
+    assert all(e.state != 'tracking' for e in est[2:12]), [e.state for e in est[:12]]
+    assert noisy.distinct < TrackingConfig().psr_floor, noisy.distinct
+
+
+def test_a_clean_sequence_is_distinct() -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make()
+    est = run(hrn, scene, clean(120), rng)
+    assert all(e.state == 'tracking' for e in est)
+    assert hrn.distinct > TrackingConfig().psr_full, hrn.distinct
+
+
+@pytest.mark.parametrize('mask', [True, False])
+def test_hot_pixels_are_masked_and_moving_edges_are_not(mask: bool) -> None:
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hot = (rng.integers(0, 72, 25), rng.integers(0, 96, 25))
+    i = np.arange(200.0)[:, None]            # a steady pan and roll, 0.45 px per frame
+    poses = np.hstack([0.4 * i - 40.0, 0.2 * i - 20.0, 0.002 * i, 0.0 * i])
+    hrn = make({} if mask else {'hot_pixel_rate': 0.0})
+    est = []
+    for k, p in enumerate(poses):
+        f = event_frame(scene, tuple(p), rng)
+        f[hot] = 1
+        est.append(hrn.step(f, k * 5_000_000))
+    if not mask:
+        assert hrn.hot_pixels == 0
+        return
+    assert hrn.hot_pixels == len(set(zip(*hot, strict=True)))     # exactly the hot ones
+    rel = poses - poses[0]                   # the output is relative to the first frame
+    err = np.median([abs(e.h - p[0]) + abs(e.v - p[1]) for e, p in zip(est[100:], rel[100:],
+                                                                       strict=True)])
+    assert err < 0.5, err
+    clean_hrn = make()
+    masked = []
+    for k, p in enumerate(poses):
+        clean_hrn.step(event_frame(scene, tuple(p), rng), k * 5_000_000)
+        masked.append(clean_hrn.hot_pixels)
+    # edges that move across pixels are not; the synthetic frames (unlike a sensor) also draw
+    # edges parallel to the motion, which stay on their pixels: at most a pixel or two
+    assert np.median(masked) == 0 and max(masked) <= 2, max(masked)
+
+
+def test_with_the_gyro_poor_frames_follow_the_prediction() -> None:
+    """Frames the map cannot place (noise) while the gyro reports a roll: the output follows
+    the gyro instead of holding the last tracked pose."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'focal_px': 80.0, 'imu': {'enabled': True, 'gate_deg': 5.0,      # as shipped
+                                          'max_correction_deg_s': 5.0,
+                                          'max_correction_fraction': 0.2}})
+    poses = clean(150)
+    run(hrn, scene, poses, rng)
+    last = hrn.step(event_frame(scene, tuple(poses[-1]), rng), 150 * 5_000_000,
+                    gyro_delta=np.zeros(3))
+    step = np.deg2rad(1.0)
+    out = [hrn.step((rng.random((72, 96)) < 0.04).astype(np.uint8), (151 + i) * 5_000_000,
+                    gyro_delta=np.array([0.0, 0.0, step])) for i in range(12)]
+    assert any(e.state != 'tracking' for e in out), [e.state for e in out]
+    assert out[-1].r - last.r == pytest.approx(12 * step, abs=np.deg2rad(1.0)), \
+        np.rad2deg(out[-1].r - last.r)
