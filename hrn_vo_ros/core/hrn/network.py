@@ -127,8 +127,7 @@ class HRN:
         self.held_frames = 0            # poor frames whose update was undone (hold_gain)
         self._density: float | None = None   # running mean on-pixel count of tracked frames
         self._ref: float | None = None  # running reference overlap o_ref
-        self._psr: float | None = None  # smoothed distinctiveness (tracking.psr_rate)
-        self.distinct = math.nan        # its last value (NaN: not computed)
+        self.distinct = math.nan        # smoothed distinctiveness (NaN: not computed yet)
         self._good_run = 0              # consecutive frames of quality >= recover
         self._bad_run = 0               # consecutive frames of quality < degrade
         self._held: dict[str, float] | None = None   # output of the last tracking frame
@@ -475,9 +474,8 @@ class HRN:
         r = self._engine.distinctiveness(target)
         if not math.isfinite(r):
             return 1.0
-        d = self._psr
-        self._psr = d = r if d is None else d + tc.psr_rate * (r - d)
-        self.distinct = d
+        d = self.distinct
+        self.distinct = d = r if math.isnan(d) else d + tc.psr_rate * (r - d)
         return self._psr_term(d)
 
     def _psr_term(self, psr: float) -> float:
