@@ -40,7 +40,11 @@ class ResonatorBackend(Protocol):
     rejected_frames: int      # frames rejected by the IMU innovation gate (imu.gate_deg)
     limited_frames: int       # readouts cut by the IMU correction limit (imu.max_correction_*)
     hot_pixels: int           # on pixels of the last frame masked as hot (hot_pixel_*)
-    distinct: float           # smoothed distinctiveness of the frames (NaN: not computed)
+
+    @property
+    def distinct(self) -> float:
+        """Smoothed distinctiveness of the frames (NaN: not computed)."""
+        ...
 
     def step(self, image: NDArray[Any], t_ns: int, *,
              gyro_delta: NDArray[Any] | None = None) -> Estimate:

@@ -18,8 +18,11 @@ Public API:
     - ``readout_axis(name) -> (K,)``: the physical value of each similarity entry.
     - ``factors`` (``('h', 'v', 'r')``, or with ``'z'``), ``iteration``, ``geometry``,
       ``rejected_frames``, ``innovation_deg``, ``reset()``; tracking (``docs/model.md``,
-      section 9): ``state``, ``quality``, ``overlap``, ``relocalisations``, ``held_frames``
-      (poor sparse frames that kept the prediction).
+      section 9): ``state``, ``quality``, ``overlap``, ``distinct``, ``relocalisations``,
+      ``held_frames`` (poor sparse frames that kept the prediction), read from ``tracker``
+      (:class:`~hrn_vo_ros.core.hrn.tracking.Tracker`: the quality terms and the state
+      machine; the network keeps what acts on the engine: the hold, the gates and the
+      re-localisation), and ``hot_pixels``.
 
 Signs: binding the map with ``h0^a`` moves the image content by +a pixels, and the output
 ``h = -a`` is the camera's position in the map (x right, y down); a camera roll φ
@@ -52,6 +55,7 @@ from hrn_vo_ros.core.hrn.shared import (
     refine_kernel,
 )
 from hrn_vo_ros.core.hrn.sphere import SphereWarp
+from hrn_vo_ros.core.hrn.tracking import Tracker
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.errors import ConfigError, TrackingError
 
@@ -104,6 +108,7 @@ class HRN:
             self._blur = np.exp(-2.0 * math.pi ** 2 * sig ** 2 * (fx ** 2 + fy ** 2))
         self._blur32 = (self._blur.astype(np.float32) if self._blur is not None
                         and self._engine.blur_dtype is np.float32 else None)
+        self.tracker = Tracker(c.tracking)     # quality and state (core/hrn/tracking.py)
         self.reset()
 
     def reset(self) -> None:
@@ -120,19 +125,41 @@ class HRN:
         self._t_prev: int | None = None  # time of the previous frame (ns)
         self._prev: dict[str, float] | None = None  # readout of the last valid frame
         self._velocity: dict[str, float] | None = None   # smoothed readout change per frame
-        self.state = 'tracking'         # tracking / degraded / lost (tracking section)
-        self.quality = 1.0              # quality of the last valid frame
-        self.overlap = 1.0              # its frame-map overlap at the estimate
-        self.relocalisations = 0        # accepted re-localisations
-        self.held_frames = 0            # poor frames whose update was undone (hold_gain)
-        self._density: float | None = None   # running mean on-pixel count of tracked frames
-        self._ref: float | None = None  # running reference overlap o_ref
-        self.distinct = math.nan        # smoothed distinctiveness (NaN: not computed yet)
-        self._good_run = 0              # consecutive frames of quality >= recover
-        self._bad_run = 0               # consecutive frames of quality < degrade
+        self.tracker.reset()
         self._held: dict[str, float] | None = None   # output of the last tracking frame
         self._on_frac = np.zeros((self.cfg.height, self.cfg.width))  # running on-fraction
         self.hot_pixels = 0             # on pixels masked as hot in the last frame
+
+    # the tracker's figures, as the network's own (docs/model.md, section 9)
+    @property
+    def state(self) -> str:
+        """``tracking``, ``degraded`` or ``lost``."""
+        return self.tracker.state
+
+    @property
+    def quality(self) -> float:
+        """Quality in [0, 1] of the last valid frame."""
+        return self.tracker.quality
+
+    @property
+    def overlap(self) -> float:
+        """The last frame-map overlap at the estimate."""
+        return self.tracker.overlap
+
+    @property
+    def distinct(self) -> float:
+        """Smoothed distinctiveness (peak-to-sidelobe ratio); NaN before the first frame."""
+        return self.tracker.distinct
+
+    @property
+    def relocalisations(self) -> int:
+        """Accepted re-localisations."""
+        return self.tracker.relocalisations
+
+    @property
+    def held_frames(self) -> int:
+        """Poor sparse frames whose update was undone (``tracking.hold_gain``)."""
+        return self.tracker.held_frames
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -397,30 +424,29 @@ class HRN:
                            dict[str, Real], Any]:
         """Quality, the hold of poor sparse frames, the state, and re-localisation when lost.
         Returns (point, spread, peak, sims, map target)."""
-        c, eng = self.cfg, self._engine
+        c, eng, tr = self.cfg, self._engine, self.tracker
         target = eng.map_target(S, point)
         o1 = eng.overlap(target)
-        q = self._quality(o1)
-        weak = self._density is not None and n_on < c.tracking.hold_density * self._density
-        if prior is not None and weak and not rejected \
-                and min(q, self._sharpness(peak)) < c.tracking.degrade:
+        q = tr.overlap_quality(o1)
+        if prior is not None and tr.sparse(n_on) and not rejected \
+                and min(q, tr.sharpness(peak)) < c.tracking.degrade:
             # a poor, sparse frame moves the states only if that clearly improves the
             # match over the prediction: else they keep it (hot pixels, noise, a pause)
             books = eng.books
             pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
             t0 = eng.map_target(S, pp)
             o0 = eng.overlap(t0)
-            q0 = self._quality(o0)
+            q0 = tr.overlap_quality(o0)
             if q - q0 < c.tracking.hold_gain:
                 eng.state.update(prior)
                 sims = eng.similarities()
                 peak = {k: float(np.max(x)) for k, x in sims.items()}
                 point, target, q = pp, t0, q0
-                self.held_frames += 1
+                tr.held_frames += 1
             else:
-                self.overlap = o1
-        self._track_state(min(q, self._sharpness(peak), self._distinct(target)))
-        if self.state == 'lost' and c.tracking.relocalise:
+                tr.overlap = o1
+        tr.update(min(q, tr.sharpness(peak), tr.distinct_term(eng.distinctiveness(target))))
+        if tr.state == 'lost' and c.tracking.relocalise:
             kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
             found = self._relocalise(S, point)
             if found is not None:
@@ -434,81 +460,21 @@ class HRN:
         c = self.cfg
         tracking = self.state == 'tracking'
         if tracking:        # running mean of the tracked frames' on-pixel counts
-            d = self._density
-            self._density = float(n_on) if d is None else d + c.tracking.ref_rate * (n_on - d)
+            self.tracker.note_tracked(n_on)
         if c.cleanup.predict_velocity > 0.0:
             if tracking:
                 self._track_velocity(point)
             else:       # gate the prediction: no velocity from frames of low quality
                 self._prev = self._velocity = None
 
-    # -- tracking quality, state, re-localisation -------------------------------------------
-
-    def _quality(self, overlap: float) -> float:
-        """Quality in [0, 1] of a frame-map overlap, relative to the running reference."""
-        tc = self.cfg.tracking
-        self.overlap = overlap
-        ref = self._ref
-        if ref is None:                 # the first overlap after the map's frame
-            ref = self._ref = max(overlap, 2.0 * tc.overlap_floor)
-        return min(max((overlap - tc.overlap_floor) / (ref - tc.overlap_floor), 0.0), 1.0)
-
-    def _sharpness(self, peak: dict[str, float]) -> float:
-        """Quality term of the factors' peak similarities (the lowest of h, v, r): a state
-        split between two poses (a roll ambiguous by 180 degrees, a shift between two
-        matches) has a low peak even where the overlap looks fine."""
-        tc = self.cfg.tracking
-        if tc.sharp_full <= tc.sharp_floor:
-            return 1.0
-        c = min(peak.get(k, 1.0) for k in ('h', 'v', 'r'))
-        return min(max((c - tc.sharp_floor) / (tc.sharp_full - tc.sharp_floor), 0.0), 1.0)
-
-    def _distinct(self, target: Any) -> float:
-        """Quality term of the frame's distinctiveness against the map (its smoothed
-        peak-to-sidelobe ratio at the estimate): a frame of noise, or a texture finer than the
-        frame's pixels, overlaps a map learned at its own (wrong) poses as well as ever, but it
-        matches there no better than at any other shift."""
-        tc = self.cfg.tracking
-        if tc.psr_full <= tc.psr_floor:
-            return 1.0
-        r = self._engine.distinctiveness(target)
-        if not math.isfinite(r):
-            return 1.0
-        d = self.distinct
-        self.distinct = d = r if math.isnan(d) else d + tc.psr_rate * (r - d)
-        return self._psr_term(d)
-
-    def _psr_term(self, psr: float) -> float:
-        """A distinctiveness (peak-to-sidelobe ratio) as a quality term in [0, 1]."""
-        tc = self.cfg.tracking
-        if tc.psr_full <= tc.psr_floor or not math.isfinite(psr):
-            return 1.0
-        return min(max((psr - tc.psr_floor) / (tc.psr_full - tc.psr_floor), 0.0), 1.0)
-
-    def _track_state(self, q: float) -> None:
-        """The state machine with hysteresis (``docs/model.md``, tracking section)."""
-        tc = self.cfg.tracking
-        self.quality = q
-        self._good_run = self._good_run + 1 if q >= tc.recover else 0
-        self._bad_run = self._bad_run + 1 if q < tc.degrade else 0
-        if self.state == 'tracking' and q < tc.degrade:
-            self.state = 'degraded'
-        elif self.state == 'degraded':
-            if self._good_run >= tc.recover_frames:
-                self.state = 'tracking'
-            elif self._bad_run >= tc.lose_frames:
-                self.state = 'lost'
-        elif self.state == 'lost' and self._good_run >= tc.recover_frames:
-            self.state = 'tracking'     # the states found the map again by themselves
-        if self.state == 'tracking' and self._ref is not None and q >= tc.recover:
-            self._ref += tc.ref_rate * (self.overlap - self._ref)
+    # -- re-localisation -------------------------------------------------------------------
 
     def _relocalise(self, S: Any, point: dict[str, float]
                     ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
                                dict[str, Real], Any] | None:
         """Global search and restarts while lost; the accepted restart's readout, or None
         (the states then continue from the best restart)."""
-        eng, tc = self._engine, self.cfg.tracking
+        eng, tc, tr = self._engine, self.cfg.tracking, self.tracker
         search = getattr(eng, 'relocalise', None)
         if search is None:
             return None
@@ -521,7 +487,7 @@ class HRN:
             pt, spread, peak = self._readout(sims)
             target = eng.map_target(S, pt)
             ov = eng.overlap(target)
-            if self._sharpness(peak) < tc.relock:     # a split state is no re-localisation
+            if tr.sharpness(peak) < tc.relock:     # a split state is no re-localisation
                 continue
             if best is None or ov > best[0]:
                 best = (ov, {k: x.copy() for k, x in eng.state.items()},
@@ -531,14 +497,11 @@ class HRN:
         eng.state.update(best[1])
         # a restart must also match the map at its pose distinctly (not noise, not a texture
         # that matches anywhere)
-        q = min(self._quality(best[0]),
-                self._psr_term(eng.distinctiveness(best[2][4])))
+        q = min(tr.overlap_quality(best[0]), tr.psr_term(eng.distinctiveness(best[2][4])))
         if q < tc.relock:
-            self.quality = q
+            tr.quality = q
             return None
-        self.quality, self.state = q, 'degraded'
-        self._good_run, self._bad_run = 1, 0
-        self.relocalisations += 1
+        tr.relocked(q)
         pt, spread, peak, sims, target = best[2]
         return pt, spread, peak, sims, target
 

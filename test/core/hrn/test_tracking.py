@@ -191,13 +191,13 @@ def test_a_split_state_has_low_quality() -> None:
     sharp_full, caps the quality."""
     hrn = make()
     tc = hrn.cfg.tracking
-    assert hrn._sharpness({'h': 0.9, 'v': 0.95, 'r': 0.8}) == 1.0
-    assert hrn._sharpness({'h': 0.9, 'v': 0.95, 'r': tc.sharp_floor}) == 0.0
+    assert hrn.tracker.sharpness({'h': 0.9, 'v': 0.95, 'r': 0.8}) == 1.0
+    assert hrn.tracker.sharpness({'h': 0.9, 'v': 0.95, 'r': tc.sharp_floor}) == 0.0
     mid = 0.5 * (tc.sharp_floor + tc.sharp_full)
-    assert hrn._sharpness({'h': mid, 'v': 0.95, 'r': 0.9}) == pytest.approx(0.5)
-    assert hrn._sharpness({'h': 0.9, 'v': 0.3, 'r': 0.9}) < tc.degrade
+    assert hrn.tracker.sharpness({'h': mid, 'v': 0.95, 'r': 0.9}) == pytest.approx(0.5)
+    assert hrn.tracker.sharpness({'h': 0.9, 'v': 0.3, 'r': 0.9}) < tc.degrade
     off = make({'tracking': {'sharp_full': 0.0}})
-    assert off._sharpness({'h': 0.1, 'v': 0.1, 'r': 0.1}) == 1.0
+    assert off.tracker.sharpness({'h': 0.1, 'v': 0.1, 'r': 0.1}) == 1.0
 
 
 def test_a_roll_spread_over_many_poses_is_flagged() -> None:
@@ -219,7 +219,7 @@ def test_a_roll_spread_over_many_poses_is_flagged() -> None:
     eng.state['r'] = mix / np.abs(mix).mean()
     out = run(hrn, scene, poses[:3], rng, t0=40)
     assert abs(out[0].r) < np.deg2rad(1.0)                # the readout is still right
-    assert hrn.overlap > 0.5 * hrn._ref                   # and so is the overlap
+    assert hrn.overlap > 0.5 * hrn.tracker.ref                   # and so is the overlap
     assert out[0].confidence['r'] < 0.35
     assert out[0].state == 'degraded' and out[0].quality < hrn.cfg.tracking.degrade
 

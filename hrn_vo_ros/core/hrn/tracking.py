@@ -1,0 +1,127 @@
+"""Tracking quality and state of the HRN (``docs/model.md``, section 9): numbers only.
+
+The network measures, on each frame, the frame-map overlap at its estimate, the factors' peak
+similarities and the distinctiveness of the match (peak-to-sidelobe ratio); :class:`Tracker`
+turns them into a quality in [0, 1] and the state ``tracking`` / ``degraded`` / ``lost`` with
+hysteresis, and keeps the running references (overlap, on-pixel density) they are judged
+against. What the network does with them (hold a poor frame, gate the map and the velocity,
+re-localise while lost) stays in :mod:`.network`, which owns the engine.
+
+Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
+``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``relocked(q)``,
+``sparse(n_on)``, ``note_tracked(n_on)`` and the attributes ``state``, ``quality``,
+``overlap``, ``distinct``, ``relocalisations``, ``held_frames``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hrn_vo_ros.core.hrn.config import TrackingConfig
+
+
+class Tracker:
+    """Quality terms, the running references and the state machine with hysteresis.
+
+    Args:
+        cfg: The ``tracking`` section of the resonator configuration.
+    """
+
+    def __init__(self, cfg: TrackingConfig) -> None:
+        self.cfg = cfg
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to a fresh track: state tracking, no references yet."""
+        self.state = 'tracking'         # tracking / degraded / lost
+        self.quality = 1.0              # quality of the last valid frame
+        self.overlap = 1.0              # its frame-map overlap at the estimate
+        self.distinct = math.nan        # smoothed distinctiveness (NaN: not computed yet)
+        self.relocalisations = 0        # accepted re-localisations
+        self.held_frames = 0            # poor sparse frames whose update was undone
+        self.density: float | None = None   # running mean on-pixel count of tracked frames
+        self.ref: float | None = None   # running reference overlap o_ref
+        self._good_run = 0              # consecutive frames of quality >= recover
+        self._bad_run = 0               # consecutive frames of quality < degrade
+
+    # -- quality terms ----------------------------------------------------------------------
+
+    def overlap_quality(self, overlap: float) -> float:
+        """Quality in [0, 1] of a frame-map overlap, relative to the running reference (the
+        first overlap after the map's frame sets it); records ``overlap``."""
+        tc = self.cfg
+        self.overlap = overlap
+        ref = self.ref
+        if ref is None:
+            ref = self.ref = max(overlap, 2.0 * tc.overlap_floor)
+        return min(max((overlap - tc.overlap_floor) / (ref - tc.overlap_floor), 0.0), 1.0)
+
+    def sharpness(self, peak: dict[str, float]) -> float:
+        """Quality term of the factors' peak similarities (the lowest of h, v, r): a state
+        split between two poses (a roll ambiguous by 180 degrees, a shift between two
+        matches) has a low peak even where the overlap looks fine."""
+        tc = self.cfg
+        if tc.sharp_full <= tc.sharp_floor:
+            return 1.0
+        c = min(peak.get(k, 1.0) for k in ('h', 'v', 'r'))
+        return min(max((c - tc.sharp_floor) / (tc.sharp_full - tc.sharp_floor), 0.0), 1.0)
+
+    def distinct_term(self, ratio: float) -> float:
+        """Quality term of the frame's distinctiveness (its peak-to-sidelobe ratio against the
+        map at the estimate), smoothed into :attr:`distinct`: a frame of noise, or a texture
+        finer than the frame's pixels, overlaps a map learned at its own (wrong) poses as well
+        as ever, but it matches there no better than at any other shift. A NaN ratio (an
+        engine without the measure) gives 1."""
+        tc = self.cfg
+        if tc.psr_full <= tc.psr_floor or not math.isfinite(ratio):
+            return 1.0
+        d = self.distinct
+        self.distinct = d = ratio if math.isnan(d) else d + tc.psr_rate * (ratio - d)
+        return self.psr_term(d)
+
+    def psr_term(self, ratio: float) -> float:
+        """A distinctiveness (peak-to-sidelobe ratio) as a quality term in [0, 1], unsmoothed
+        (a re-localisation candidate is judged on its own)."""
+        tc = self.cfg
+        if tc.psr_full <= tc.psr_floor or not math.isfinite(ratio):
+            return 1.0
+        return min(max((ratio - tc.psr_floor) / (tc.psr_full - tc.psr_floor), 0.0), 1.0)
+
+    # -- the state machine ------------------------------------------------------------------
+
+    def update(self, q: float) -> None:
+        """One frame of quality ``q``: the state with hysteresis; tracking frames of good
+        quality move the reference overlap towards theirs."""
+        tc = self.cfg
+        self.quality = q
+        self._good_run = self._good_run + 1 if q >= tc.recover else 0
+        self._bad_run = self._bad_run + 1 if q < tc.degrade else 0
+        if self.state == 'tracking' and q < tc.degrade:
+            self.state = 'degraded'
+        elif self.state == 'degraded':
+            if self._good_run >= tc.recover_frames:
+                self.state = 'tracking'
+            elif self._bad_run >= tc.lose_frames:
+                self.state = 'lost'
+        elif self.state == 'lost' and self._good_run >= tc.recover_frames:
+            self.state = 'tracking'     # the states found the map again by themselves
+        if self.state == 'tracking' and self.ref is not None and q >= tc.recover:
+            self.ref += tc.ref_rate * (self.overlap - self.ref)
+
+    def relocked(self, q: float) -> None:
+        """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""
+        self.quality, self.state = q, 'degraded'
+        self._good_run, self._bad_run = 1, 0
+        self.relocalisations += 1
+
+    # -- on-pixel density -------------------------------------------------------------------
+
+    def sparse(self, n_on: int) -> bool:
+        """Whether a frame of ``n_on`` on pixels is sparse (``hold_density`` of the running
+        mean of tracked frames; never before the first tracked frame)."""
+        return self.density is not None and n_on < self.cfg.hold_density * self.density
+
+    def note_tracked(self, n_on: int) -> None:
+        """A tracked frame's on-pixel count into the running mean (rate ``ref_rate``)."""
+        d = self.density
+        self.density = float(n_on) if d is None else d + self.cfg.ref_rate * (n_on - d)

@@ -1,0 +1,78 @@
+"""The tracker alone (core/hrn/tracking.py): quality terms and the state machine on
+hand-made quality sequences, against hand-computed values."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from hrn_vo_ros.core.hrn.config import TrackingConfig
+from hrn_vo_ros.core.hrn.tracking import Tracker
+
+
+def states(tr: Tracker, qualities: list[float]) -> list[str]:
+    out = []
+    for q in qualities:
+        tr.update(q)
+        out.append(tr.state)
+    return out
+
+
+def test_hysteresis_degrade_lose_recover() -> None:
+    """One bad frame degrades; lose_frames bad frames in a row lose; recover_frames good
+    frames (>= recover, not merely >= degrade) bring it back."""
+    tr = Tracker(TrackingConfig(degrade=0.45, recover=0.6, recover_frames=3, lose_frames=4))
+    assert states(tr, [0.9, 0.4]) == ['tracking', 'degraded']
+    # 0.5 is between degrade and recover: neither a good nor a bad frame; it breaks the run
+    assert states(tr, [0.4, 0.4, 0.5, 0.4, 0.4]) == ['degraded'] * 5
+    assert states(tr, [0.4]) == ['degraded']          # the 3rd bad frame in a row
+    assert states(tr, [0.3]) == ['lost']              # the 4th
+    assert states(tr, [0.7, 0.7, 0.5, 0.7, 0.7]) == ['lost'] * 5
+    assert states(tr, [0.7]) == ['tracking']
+
+
+def test_lost_counts_from_the_first_bad_frame() -> None:
+    """The bad run that loses the track includes the frame that degraded it."""
+    tr = Tracker(TrackingConfig(lose_frames=3, recover_frames=2))
+    assert states(tr, [0.1, 0.1, 0.1]) == ['degraded', 'degraded', 'lost']
+    tr.relocked(0.8)
+    assert (tr.state, tr.relocalisations, tr.quality) == ('degraded', 1, 0.8)
+    assert states(tr, [0.8]) == ['tracking']          # the re-lock counted as one good frame
+
+
+def test_overlap_quality_against_the_running_reference() -> None:
+    """q = (o - floor) / (ref - floor) clipped to [0, 1]; the first overlap sets ref (at
+    least 2 floor); good tracking frames move ref by ref_rate."""
+    tr = Tracker(TrackingConfig(overlap_floor=0.1, ref_rate=0.5, recover=0.6))
+    assert tr.overlap_quality(0.5) == 1.0 and tr.ref == 0.5
+    assert tr.overlap_quality(0.3) == pytest.approx(0.5)        # (0.3 - 0.1) / 0.4
+    assert tr.overlap_quality(0.05) == 0.0
+    tr.overlap_quality(0.7)
+    tr.update(1.0)                                              # ref += 0.5 (0.7 - 0.5)
+    assert tr.ref == pytest.approx(0.6)
+    tr.overlap_quality(0.2)
+    tr.update(0.2)                                              # degraded: ref stays
+    assert tr.ref == pytest.approx(0.6)
+    assert Tracker(TrackingConfig(overlap_floor=0.1)).overlap_quality(0.05) == 0.0  # ref 0.2
+
+
+def test_distinctiveness_is_smoothed_and_mapped() -> None:
+    """The PSR term: linear between psr_floor and psr_full on the exponential average."""
+    tr = Tracker(TrackingConfig(psr_floor=6.0, psr_full=10.0, psr_rate=0.25))
+    assert math.isnan(tr.distinct)
+    assert tr.distinct_term(12.0) == 1.0 and tr.distinct == 12.0
+    assert tr.distinct_term(4.0) == pytest.approx(1.0)          # 12 + 0.25 (4 - 12) = 10
+    assert tr.distinct_term(4.0) == pytest.approx(0.625)        # 8.5 -> (8.5 - 6) / 4
+    assert tr.distinct_term(float('nan')) == 1.0 and tr.distinct == pytest.approx(8.5)
+    assert tr.psr_term(7.0) == pytest.approx(0.25)              # unsmoothed
+    assert Tracker(TrackingConfig(psr_full=0.0)).distinct_term(1.0) == 1.0
+
+
+def test_density_and_sparse_frames() -> None:
+    tr = Tracker(TrackingConfig(hold_density=0.5, ref_rate=0.1))
+    assert not tr.sparse(0)                       # no tracked frame yet: nothing is sparse
+    tr.note_tracked(1000)
+    tr.note_tracked(0)                            # 1000 + 0.1 (0 - 1000) = 900
+    assert tr.density == pytest.approx(900.0)
+    assert tr.sparse(449) and not tr.sparse(450)
