@@ -237,6 +237,10 @@ class TrackingConfig:
                           lo=1, hi=64)
     restart_iterations: int = param(4, 'resonator iterations of each restart on the frame',
                                     lo=1, hi=100)
+    search_every: int = param(4, 'search on the first lost frame and then on every n-th '
+                              'lost frame (a search costs about 10 frames of tracking; in '
+                              'between, the states keep resonating and may find the map '
+                              'themselves)', lo=1, hi=1000)
     relock: float = param(0.6, 'quality a restart must reach to accept the re-localisation',
                           lo=0.0, hi=1.0)
 

@@ -446,7 +446,7 @@ class HRN:
             else:
                 tr.overlap = o1
         tr.update(min(q, tr.sharpness(peak), tr.distinct_term(eng.distinctiveness(target))))
-        if tr.state == 'lost' and c.tracking.relocalise:
+        if c.tracking.relocalise and tr.search_due():
             kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
             found = self._relocalise(S, point)
             if found is not None:

@@ -8,7 +8,8 @@ against. What the network does with them (hold a poor frame, gate the map and th
 re-localise while lost) stays in :mod:`.network`, which owns the engine.
 
 Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
-``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``relocked(q)``,
+``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
+``relocked(q)``,
 ``sparse(n_on)``, ``note_tracked(n_on)`` and the attributes ``state``, ``quality``,
 ``overlap``, ``distinct``, ``relocalisations``, ``held_frames``.
 """
@@ -43,6 +44,7 @@ class Tracker:
         self.ref: float | None = None   # running reference overlap o_ref
         self._good_run = 0              # consecutive frames of quality >= recover
         self._bad_run = 0               # consecutive frames of quality < degrade
+        self.lost_run = 0               # consecutive lost frames (the search's schedule)
 
     # -- quality terms ----------------------------------------------------------------------
 
@@ -107,11 +109,17 @@ class Tracker:
             self.state = 'tracking'     # the states found the map again by themselves
         if self.state == 'tracking' and self.ref is not None and q >= tc.recover:
             self.ref += tc.ref_rate * (self.overlap - self.ref)
+        self.lost_run = self.lost_run + 1 if self.state == 'lost' else 0
+
+    def search_due(self) -> bool:
+        """Whether a lost frame runs the global search: the first lost frame and every
+        ``search_every``-th after it."""
+        return self.state == 'lost' and (self.lost_run - 1) % self.cfg.search_every == 0
 
     def relocked(self, q: float) -> None:
         """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""
         self.quality, self.state = q, 'degraded'
-        self._good_run, self._bad_run = 1, 0
+        self._good_run, self._bad_run, self.lost_run = 1, 0, 0
         self.relocalisations += 1
 
     # -- on-pixel density -------------------------------------------------------------------

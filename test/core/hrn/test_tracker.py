@@ -76,3 +76,24 @@ def test_density_and_sparse_frames() -> None:
     tr.note_tracked(0)                            # 1000 + 0.1 (0 - 1000) = 900
     assert tr.density == pytest.approx(900.0)
     assert tr.sparse(449) and not tr.sparse(450)
+
+
+def test_the_search_runs_on_the_first_lost_frame_and_every_nth() -> None:
+    tr = Tracker(TrackingConfig(lose_frames=2, search_every=4))
+    due = []
+    for _ in range(11):
+        tr.update(0.0)
+        due.append(tr.search_due())
+    # frame 1 degrades, frame 2 is the first lost one: searches on lost frames 1, 5, 9
+    assert due == [False, True, False, False, False, True, False, False, False, True, False]
+    tr.relocked(0.7)
+    assert not tr.search_due() and tr.lost_run == 0
+    tr.update(0.0)                                 # degraded again (one bad frame) ...
+    tr.update(0.0)                                 # ... and lost: a fresh schedule
+    assert tr.search_due()
+    every = Tracker(TrackingConfig(lose_frames=1, search_every=1))
+    flags = []
+    for _ in range(4):
+        every.update(0.1)
+        flags.append(every.search_due())
+    assert flags == [False, True, True, True]      # degraded first, then lost: every frame
