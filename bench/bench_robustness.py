@@ -28,10 +28,11 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
 
 ``--cache DIR`` keeps each simulated sequence's frames, ground truth and IMU there (pickles
 keyed by kind, seed and length), so that a second run, e.g. with ``--set``, skips the
-simulation; ``--set KEY=VALUE`` overrides resonator settings of the HRN methods (as
-``hrn-vo run --set``). ``--trace DIR`` writes, per sequence and method,
-``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time, error, state and quality (the
-error-vs-time of the failures).
+simulation (the events are kept too, so that ``--pset`` runs skip it as well); ``--set
+KEY=VALUE`` overrides resonator settings of the HRN methods (as ``hrn-vo run --set``),
+``--pset KEY=VALUE`` packetizer settings of every method. ``--trace DIR`` writes, per
+sequence and method, ``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time, error,
+state and quality (the error-vs-time of the failures).
 
 Examples::
 
@@ -49,7 +50,7 @@ for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
-from dataclasses import asdict, dataclass  # noqa: E402
+from dataclasses import asdict, dataclass, fields  # noqa: E402
 import math  # noqa: E402
 import multiprocessing  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -114,10 +115,13 @@ class Row:
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
 OVERRIDES: dict[str, Any] = {}
+#: Packetizer overrides of every method (``--pset``; they change the frames).
+P_OVERRIDES: dict[str, Any] = {}
 
 
-def _init(overrides: dict[str, Any]) -> None:
+def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None) -> None:
     OVERRIDES.update(overrides)
+    P_OVERRIDES.update(p_overrides or {})
 
 
 def _value(text: str) -> Any:
@@ -140,19 +144,30 @@ def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
         over: dict[str, Any] = dict(OVERRIDES)
         if imu:
             over['imu.enabled'] = True
-        dc = dataset_configs(ROOT / 'config' / CASES[kind].config, stub, resonator=over)
+        dc = dataset_configs(ROOT / 'config' / CASES[kind].config, stub,
+                             packetizer=dict(P_OVERRIDES), resonator=over)
     return dc.packetizer, dc.resonator
 
 
 def _frames(kind: str, seed: int, seconds: float, cache: str
             ) -> tuple[Any, Sequence, dict[str, float], np.ndarray, np.ndarray]:
     """The draw, its sequence (events cut to one), motion summary and frames; cached."""
-    path = Path(cache) / f'{kind}_{seed}_{seconds:g}.pkl' if cache else None
+    tag = ''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items()))   # other frames
+    path = Path(cache) / f'{kind}_{seed}_{seconds:g}{tag}.pkl' if cache else None
     if path is not None and path.exists():
         with open(path, 'rb') as f:
             return tuple(pickle.load(f))  # type: ignore[return-value]
     d = draw(kind, seed)
-    seq = simulate_draw(d, seconds)
+    raw = Path(cache) / f'{kind}_{seed}_{seconds:g}_events.pkl' if cache else None
+    if raw is not None and raw.exists():
+        with open(raw, 'rb') as f:
+            seq = pickle.load(f)
+    else:
+        seq = simulate_draw(d, seconds)
+        if raw is not None:
+            raw.parent.mkdir(parents=True, exist_ok=True)
+            with open(raw, 'wb') as f:
+                pickle.dump(seq, f)
     info = describe_motion(seq)
     pcfg, _ = _configs(kind, seq, False)
     if pcfg.rectify != 'none':
@@ -321,6 +336,76 @@ def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
     return lines
 
 
+#: Event-rate bands of the breakdown (events/s): below 20 k a 10 s draw gives the configs'
+#: fixed-count frames at a few per second.
+RATE_BANDS = ((0.0, 2e4, '<20k ev/s'), (2e4, 1e5, '20-100k'), (1e5, math.inf, '>=100k'))
+
+
+def scene_of(r: Row) -> str:
+    """The draw's scene class (from its summary line: ``... (split): <scene> at ...``)."""
+    head, _, rest = r.draw.partition('): ')
+    return rest.split(' at ')[0] if rest else 'arm'
+
+
+def unevaluable(r: Row) -> str:
+    """Why the protocol could not evaluate the row: 'few' (too few estimates: a draw too
+    sparse for the config's frames), 'still' (an estimate that never moves: lost or held from
+    the start), 'other', or '' (evaluated)."""
+    if not r.note:
+        return ''
+    if 'estimates' in r.note:
+        return 'few'
+    return 'still' if 'does not move' in r.note else 'other'
+
+
+def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
+    """Tracked / draws per scene class and per event-rate band, and the unevaluated rows by
+    cause: where each method fails."""
+    lines = ['tracked per scene class and event rate; unevaluated: too few estimates (few), '
+             'an estimate that never moves (still), other']
+    for kind in kinds:
+        for method in methods:
+            rs = [r for r in rows if r.kind == kind and r.method == method]
+            if not rs:
+                continue
+            parts = []
+            for scene in sorted({scene_of(r) for r in rs}):
+                sub = [r for r in rs if scene_of(r) == scene]
+                parts.append(f'{scene} {sum(not r.lost for r in sub)}/{len(sub)}')
+            for lo, hi, name in RATE_BANDS:
+                sub = [r for r in rs if lo <= r.events_per_s < hi]
+                if sub:
+                    parts.append(f'{name} {sum(not r.lost for r in sub)}/{len(sub)}')
+            why = [unevaluable(r) for r in rs]
+            parts.append('unevaluated ' + ' '.join(
+                f'{k} {why.count(k)}' for k in ('few', 'still', 'other')))
+            lines.append(f'{kind:12s} {method:9s} ' + ', '.join(parts))
+    return lines
+
+
+def read_rows(path: Path) -> list[Row]:
+    """Rows of a ``--csv`` file (to print the table and breakdown again)."""
+    types = {f.name: f.type for f in fields(Row)}
+    out = []
+    with open(path, newline='') as f:
+        for d in csv.DictReader(f):
+            vals: dict[str, Any] = {}
+            for k, v in d.items():
+                t = str(types[k])
+                if t in ('int', "<class 'int'>"):
+                    vals[k] = int(v)
+                elif t in ('float', "<class 'float'>"):
+                    vals[k] = float(v)
+                elif t in ('bool', "<class 'bool'>"):
+                    vals[k] = v == 'True'
+                elif 'int | None' in t:
+                    vals[k] = None if v == '' else int(v)
+                else:
+                    vals[k] = v
+            out.append(Row(**vals))
+    return out
+
+
 def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:
     """Per kind, the per-sequence median errors of every method (strip + box plot)."""
     import matplotlib
@@ -367,18 +452,33 @@ def main(argv: list[str] | None = None) -> int:
                    help='keep the simulated frames here and reuse them')
     p.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
                    help='override a resonator setting of the HRN methods (repeatable)')
+    p.add_argument('--pset', action='append', default=[], metavar='KEY=VALUE',
+                   help='override a packetizer setting of every method (repeatable; the '
+                        'frames change, so the cache keeps them apart)')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
                    help='run these seeds instead of the first -n of the split')
+    p.add_argument('--rows', type=Path, default=None,
+                   help='print the table and breakdown of a --csv file of an earlier run '
+                        '(runs nothing)')
     args = p.parse_args(argv)
+    if args.rows is not None:
+        rows = read_rows(args.rows)
+        kinds = [k for k in KINDS if any(r.kind == k for r in rows)]
+        methods = [m for m in METHODS if any(r.method == m for r in rows)]
+        for line in table(rows, kinds, methods) + [''] + breakdown(rows, kinds, methods):
+            print(line)
+        return 0
     if args.smoke:
         args.n, args.seconds = 1, 6.0
     seeds = args.seeds or (tuning_seeds(args.n) if args.tuning else fresh_seeds(args.n))
     trace = '' if args.trace is None else str(args.trace)
     cache = '' if args.cache is None else str(args.cache)
-    over = {}
-    for item in args.set:
-        key, _, val = item.partition('=')
-        over[key.strip()] = _value(val.strip())
+    over: dict[str, Any] = {}
+    p_over: dict[str, Any] = {}
+    for items, into in ((args.set, over), (args.pset, p_over)):
+        for item in items:
+            key, _, val = item.partition('=')
+            into[key.strip()] = _value(val.strip())
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
     print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
@@ -386,7 +486,7 @@ def main(argv: list[str] | None = None) -> int:
           flush=True)
     t0 = time.perf_counter()
     rows: list[Row] = []
-    with multiprocessing.get_context('spawn').Pool(args.jobs, _init, (over,)) as pool:
+    with multiprocessing.get_context('spawn').Pool(args.jobs, _init, (over, p_over)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]
@@ -396,7 +496,8 @@ def main(argv: list[str] | None = None) -> int:
                       for r in out), flush=True)
     rows.sort(key=lambda r: (KINDS.index(r.kind), r.seed, METHODS.index(r.method)))
     print(f'\n{len(tasks)} sequences in {time.perf_counter() - t0:.0f} s')
-    for line in table(rows, args.kinds, args.methods):
+    for line in table(rows, args.kinds, args.methods) + [''] + breakdown(rows, args.kinds,
+                                                                          args.methods):
         print(line)
     if args.csv is not None:
         args.csv.parent.mkdir(parents=True, exist_ok=True)

@@ -20,7 +20,12 @@ from ros_helpers import spin_until
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import frames_from_events, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.frames import (
+    frames_from_events,
+    Packetizer,
+    PacketizerConfig,
+    with_calibration,
+)
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.eventpacket import encode_mono
@@ -271,6 +276,60 @@ def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Gen
         assert not np.array_equal(plain, images)
         assert wait(lambda: diags[-1].get('waiting_for_camera_info') == 'False'
                     and diags[-1].get('events_held') == '0')
+    finally:
+        node.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_denoising_packetizer_drops_lone_events_and_counts_them(
+        rng: np.random.Generator) -> None:
+    """denoise_ms as a ROS parameter: the node's frames are those of the offline packetizer
+    with the filter, on packets that split bins, and /diagnostics counts the drops."""
+    rclpy.init()
+    node = PacketizerNode(parameter_overrides=[
+        Parameter('events_per_frame', value=PER_FRAME), Parameter('events_reliable', value=True),
+        Parameter('denoise_ms', value=0.02), Parameter('diagnostics_period_s', value=0.2)])
+    probe = Node('probe')
+    try:
+        ev_pub = probe.create_publisher(EventPacket, '/packetizer_node/events', qos(1000))
+        frames: list[Image] = []
+        diags: list[dict[str, str]] = []
+        probe.create_subscription(Image, '/packetizer_node/frames', frames.append, qos(1000))
+        probe.create_subscription(
+            DiagnosticArray, '/diagnostics',
+            lambda m: diags.append(ros_msgs.diagnostic_values(m)), 100)
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        ex.add_node(probe)
+        assert spin_until(ex, lambda: ev_pub.get_subscription_count() > 0, 10.0)
+        # pairs of neighbouring pixels firing together (kept) among lone events (dropped)
+        n = 3000
+        # 20 us apart on average, bins of 20 us (a short span: the stream's clock takes long
+        # packets published at once for a header jump)
+        t = 1_000_000 + np.cumsum(rng.integers(1, 4000, n)) * 10
+        x, y = rng.integers(1, 239, n), rng.integers(0, 180, n)
+        pair = rng.random(n) < 0.5
+        t2 = np.concatenate([t, t[pair] + 1])
+        x2 = np.concatenate([x, x[pair] + 1])
+        y2 = np.concatenate([y, y[pair]])
+        order = np.argsort(t2, kind='stable')
+        ev = EventArray.from_arrays(t2[order], x2[order], y2[order],
+                                    np.ones(len(t2), np.uint8))
+        cuts = [0, 1000, 1001, 2500, len(ev)]
+        for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+            ev_pub.publish(packet(ev[a:b], seq=i))
+        offline = Packetizer(PacketizerConfig(events_per_frame=PER_FRAME, denoise_ms=0.02))
+        ref = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            ref += offline.push(ev[a:b])
+        assert offline.denoised > 0.45 * n and len(ref) >= 3       # the ~n/2 lone events
+        assert spin_until(ex, lambda: len(frames) >= len(ref), 10.0)
+        got = [ros_msgs.image_to_frame(m) for m in frames]
+        assert [tt for tt, _ in got] == [f.t_ns for f in ref]
+        assert all(np.array_equal(img, f.image) for (_, img), f in zip(got, ref, strict=True))
+        assert spin_until(ex, lambda: any(d.get('events_denoised') == str(offline.denoised)
+                                          for d in diags), 10.0)
     finally:
         node.destroy_node()
         probe.destroy_node()

@@ -20,6 +20,11 @@ the calibration (``calib.*``: from the dataset's ``calib.txt`` in ``hrn-vo run``
 ``camera_info`` in the packetizer node). Events whose rectified position falls outside the frame
 are not counted into packets; :attr:`Packetizer.outside` counts them.
 
+**Denoising** (``denoise_ms`` > 0; :mod:`.denoise`) drops, before rectification and binning,
+the events that none of their 8 neighbouring sensor pixels supports within the same or the
+previous bin of ``denoise_ms`` (background activity, hot pixels). It holds back the newest bin,
+so frames come out up to ``denoise_ms`` later; :attr:`Packetizer.denoised` counts the drops.
+
 Packetizing is vectorised: one ``bincount`` (or one scatter when any event lights a pixel) over
 ``packet * H * W + pixel`` for all complete packets of a batch; no per-event Python.
 """
@@ -36,6 +41,7 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import rectified_pixels, RECTIFY_MODES
+from hrn_vo_ros.core.events.denoise import NeighbourFilter
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.errors import ConfigError, DatasetError, TrackingError
 
@@ -85,6 +91,10 @@ class PacketizerConfig:
     rectify: str = param('none', 'move events to an ideal camera before binning: none, pinhole '
                          '(undistorted), equidistant (undistorted, radius = f * angle); '
                          'needs calib', choices=RECTIFY_MODES, read_only=True)
+    denoise_ms: float = param(0.0, 'background-activity filter: keep an event only when one '
+                              'of its 8 neighbouring sensor pixels fired in the same or the '
+                              'previous bin of this many ms (lone noise events and hot pixels '
+                              'go; delays events by up to one bin); 0: off', lo=0.0, hi=1000.0)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
 
     def __post_init__(self) -> None:
@@ -259,6 +269,14 @@ def rectify_lut(cfg: PacketizerConfig) -> NDArray[np.int32]:
     return flat.astype(np.int32).ravel()
 
 
+def denoiser(cfg: PacketizerConfig) -> NeighbourFilter | None:
+    """The background-activity filter of ``cfg`` (None when ``denoise_ms`` is 0)."""
+    if cfg.denoise_ms <= 0.0:
+        return None
+    return NeighbourFilter(cfg.sensor_width, cfg.sensor_height,
+                           max(1, round(cfg.denoise_ms * 1e6)))
+
+
 def frames_from_events(ev: EventArray, cfg: PacketizerConfig
                        ) -> tuple[NDArray[np.int64], NDArray[np.uint8]]:
     """All complete packets of ``ev`` as frames (a trailing partial packet is dropped).
@@ -278,6 +296,9 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     """
     b = _Binner(cfg)
     b.check(ev)
+    f = denoiser(cfg)
+    if f is not None:
+        ev = EventArray.concatenate([f.push(ev), f.flush()])
     k = cfg.events_per_frame
     pix, t = b.pixels(ev)
     n = len(t) // k
@@ -305,6 +326,7 @@ class Packetizer:
         self._pending = 0
         self._last_t: int | None = None
         self._outside = 0
+        self._filter = denoiser(self.cfg)
 
     @property
     def pending(self) -> int:
@@ -316,9 +338,21 @@ class Packetizer:
         """Events so far whose rectified position fell outside the frame (not binned)."""
         return self._outside
 
+    @property
+    def denoised(self) -> int:
+        """Events so far dropped by the background-activity filter (``denoise_ms``)."""
+        return 0 if self._filter is None else self._filter.dropped
+
+    @property
+    def denoise_pending(self) -> int:
+        """Events the background-activity filter holds back (its newest, open bin)."""
+        return 0 if self._filter is None else self._filter.pending
+
     def reset(self) -> None:
         """Drop pending events and the time-order memory."""
         self._pend_pix, self._pend_t, self._pending, self._last_t = [], [], 0, None
+        if self._filter is not None:
+            self._filter.reset()
 
     def push(self, ev: EventArray) -> list[EventFrame]:
         """Add events (in time order) and return the frames they complete.
@@ -335,6 +369,8 @@ class Packetizer:
                    f'at {self._last_t} ns; feed batches in time order (or reset())')
             raise DatasetError(msg)
         self._last_t = int(ev.t[-1])
+        if self._filter is not None:
+            ev = self._filter.push(ev)
         k = self.cfg.events_per_frame
         pix, t = self._b.pixels(ev)
         self._outside += len(ev) - len(t)

@@ -320,6 +320,7 @@ class PacketStream:
             ('waiting_for_camera_info', p is None),
             ('events_held', self.held),
             ('events_outside_frame', 0 if p is None else p.outside),
+            ('events_denoised', 0 if p is None else p.denoised),
             ('frames_subscribers', frames_subscribers),
             ('sensor_size', '' if p is None else f'{p.cfg.sensor_width}x{p.cfg.sensor_height}'),
             ('frame_size', '' if p is None else f'{p.cfg.width}x{p.cfg.height}'),
