@@ -457,16 +457,19 @@ def main(argv: list[str] | None = None) -> int:
                         'frames change, so the cache keeps them apart)')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
                    help='run these seeds instead of the first -n of the split')
-    p.add_argument('--rows', type=Path, default=None,
-                   help='print the table and breakdown of a --csv file of an earlier run '
-                        '(runs nothing)')
+    p.add_argument('--rows', type=Path, nargs='+', default=None,
+                   help='print the table and breakdown (and --plot) of --csv files of earlier '
+                        'runs, e.g. one per method on the same draws (runs nothing)')
     args = p.parse_args(argv)
-    if args.rows is not None:
-        rows = read_rows(args.rows)
+    if args.rows:                       # earlier runs' CSVs: print (and plot) them together
+        rows = [r for path in args.rows for r in read_rows(path)]
         kinds = [k for k in KINDS if any(r.kind == k for r in rows)]
         methods = [m for m in METHODS if any(r.method == m for r in rows)]
         for line in table(rows, kinds, methods) + [''] + breakdown(rows, kinds, methods):
             print(line)
+        if args.plot is not None:
+            plot(rows, kinds, methods, args.plot)
+            print(f'plot -> {args.plot}')
         return 0
     if args.smoke:
         args.n, args.seconds = 1, 6.0

@@ -29,6 +29,8 @@ class Case:
     args: tuple[str, ...]
     expect: tuple[str, ...]
     timeout: float = 120.0
+    then: tuple[str, ...] = ()          # a second run's arguments (after the first's)
+    then_expect: tuple[str, ...] = ()
 
 
 CASES = {
@@ -52,9 +54,14 @@ CASES = {
     # its --smoke runs every kind and method (minutes): one kind, the HRN only (the spiking
     # backend and the baseline run in the cases above); 6 s is the shortest the protocol's
     # calibration segment evaluates
+    # (with the denoising filter, and then its CSV printed again by --rows)
     'robustness': Case('bench_robustness.py', ('--smoke', '--kinds', 'rotation', '--methods',
-                                               'hrn', '--jobs', '1'),
-                       ('1 sequences in', 'tracked  time ok', 'rotation     hrn')),
+                                               'hrn', '--jobs', '1', '--pset', 'denoise_ms=2',
+                                               '--csv', '{work}/r.csv'),
+                       ('1 sequences in', 'tracked  time ok', 'rotation     hrn',
+                        'unevaluated few'),
+                       then=('--rows', '{work}/r.csv', '--plot', '{work}/r.png'),
+                       then_expect=('tracked  time ok', 'rotation     hrn', 'plot ->')),
     # two 2.5 s loops of the demo bag through the real node processes
     'soak': Case('bench_soak.py', ('--smoke', '--work', '{work}'),
                  ('RSS summary (MB)', 'from warm-up', 'single pass (offline',
@@ -79,12 +86,15 @@ def test_bench_runs_to_the_end(name: str, tmp_path: Path) -> None:
         pytest.skip(f'{script.relative_to(ROOT)} does not exist (yet)')
     env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get('PYTHONPATH')])])}
-    args = [a.replace('{work}', str(tmp_path / 'work')) for a in case.args]
-    proc = subprocess.run([sys.executable, str(script), *args], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=case.timeout, check=False)
-    out = proc.stdout + proc.stderr
-    assert proc.returncode == 0, f'{case.script} exited with {proc.returncode}:\n{out[-4000:]}'
-    missing = [e for e in case.expect if e not in proc.stdout]
-    assert not missing, f'{case.script} did not print {missing}:\n{out[-4000:]}'
-    for bad in ('Traceback', 'FAILED'):
-        assert bad not in out, f'{case.script} printed {bad!r}:\n{out[-4000:]}'
+    runs = [(case.args, case.expect)] + ([(case.then, case.then_expect)] if case.then else [])
+    for run_args, expect in runs:
+        args = [a.replace('{work}', str(tmp_path / 'work')) for a in run_args]
+        proc = subprocess.run([sys.executable, str(script), *args], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=case.timeout,
+                              check=False)
+        out = proc.stdout + proc.stderr
+        assert proc.returncode == 0, f'{case.script} exited with {proc.returncode}:\n{out[-4000:]}'
+        missing = [e for e in expect if e not in proc.stdout]
+        assert not missing, f'{case.script} did not print {missing}:\n{out[-4000:]}'
+        for bad in ('Traceback', 'FAILED'):
+            assert bad not in out, f'{case.script} printed {bad!r}:\n{out[-4000:]}'
