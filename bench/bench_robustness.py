@@ -471,6 +471,11 @@ def main(argv: list[str] | None = None) -> int:
                         'runs, e.g. one per method on the same draws (runs nothing)')
     args = p.parse_args(argv)
     if args.rows:                       # earlier runs' CSVs: print (and plot) them together
+        missing = [str(path) for path in args.rows if not path.is_file()]
+        if missing:
+            print(f'--rows: no such file: {", ".join(missing)} (give --csv files of earlier '
+                  'runs)', file=sys.stderr)
+            return 2
         rows = [r for path in args.rows for r in read_rows(path)]
         kinds = [k for k in KINDS if any(r.kind == k for r in rows)]
         methods = [m for m in METHODS if any(r.method == m for r in rows)]

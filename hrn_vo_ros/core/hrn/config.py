@@ -229,6 +229,9 @@ class TrackingConfig:
                                 'than this fraction of the running mean over tracked frames '
                                 '(a full frame of a fast jump keeps converging)', lo=0.0,
                                 hi=10.0)
+    gyro_poor: bool = param(False, 'with the gyro, a poor frame (lost, or degraded below '
+                            '"degrade") leaves the states and the output at the gyro\'s '
+                            'prediction instead of its own readout')
     relocalise: bool = param(True, 'while lost, search the map globally over roll and shift '
                              'and restart the factors from the best candidates')
     rolls: int = param(24, 'roll candidates of the global search (evenly over the full turn)',

@@ -453,6 +453,15 @@ class HRN:
                 point, spread, peak, sims, target = found
             elif kept is not None:      # the gyro carries the states: no unaccepted restart
                 eng.state.update(kept)
+        if gyro and c.tracking.gyro_poor and prior is not None and (tr.state == 'lost' or (
+                tr.state == 'degraded' and tr.quality < c.tracking.degrade)):
+            # a poor frame's readout is no measurement: the states keep the gyro's prediction
+            books = eng.books
+            eng.state.update(prior)
+            sims = eng.similarities()
+            peak = {k: float(np.max(x)) for k, x in sims.items()}
+            point = {k: books[k].wrap(v) for k, v in prior_point.items()}
+            target = eng.map_target(S, point)
         return point, spread, peak, sims, target
 
     def _follow(self, point: dict[str, float], n_on: int) -> None:

@@ -399,3 +399,37 @@ def test_with_the_gyro_poor_frames_follow_the_prediction() -> None:
     assert any(e.state != 'tracking' for e in out), [e.state for e in out]
     assert out[-1].r - last.r == pytest.approx(12 * step, abs=np.deg2rad(1.0)), \
         np.rad2deg(out[-1].r - last.r)
+
+
+@pytest.mark.parametrize('on', [True, False])
+def test_tracking_gyro_poor_keeps_poor_frames_at_the_prediction(on: bool) -> None:
+    """tracking.gyro_poor (no gate, no correction limit): each poor noise frame moves the
+    output by exactly the gyro's step (roll 1 deg, pan 0.5 deg = f x 0.5 deg in rad px, the
+    equidistant shift of the IMU prediction); off, the noise frames' readouts move it
+    elsewhere."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'focal_px': 80.0, 'imu': {'enabled': True},
+                'tracking': {'gyro_poor': on}})
+    poses = clean(150)
+    run(hrn, scene, poses, rng)
+    hrn.step(event_frame(scene, tuple(poses[-1]), rng), 150 * 5_000_000,
+             gyro_delta=np.zeros(3))
+    gyro = np.array([0.0, np.deg2rad(0.5), np.deg2rad(1.0)])
+    prev = None
+    off_prediction = []
+    for i in range(16):
+        e = hrn.step((rng.random((72, 96)) < 0.04).astype(np.uint8), (151 + i) * 5_000_000,
+                     gyro_delta=gyro)
+        poor = e.state == 'lost' or (e.state == 'degraded'
+                                     and e.quality < hrn.cfg.tracking.degrade)
+        if poor and prev is not None:
+            off_prediction.append(max(abs(np.rad2deg(e.r - prev.r) - 1.0),
+                                      abs(np.hypot(e.h - prev.h, e.v - prev.v)
+                                          - 80.0 * np.deg2rad(0.5))))
+        prev = e
+    assert len(off_prediction) >= 5
+    if on:
+        assert max(off_prediction) < 1e-6, off_prediction
+    else:
+        assert max(off_prediction) > 0.1, off_prediction
