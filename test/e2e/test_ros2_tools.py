@@ -39,12 +39,19 @@ def ros2(*args: str, timeout: float = 40.0) -> subprocess.CompletedProcess[str]:
                           check=False, cwd=ROOT)
 
 
+#: The last ``ros2 topic info`` output of :func:`counts` (shown when a wait for it fails).
+LAST_INFO: list[str] = ['']
+
+
 def wait_for(what: str, check: Callable[[], bool], timeout: float = 60.0) -> None:
-    """Poll ``check`` until it holds; fail naming ``what`` after ``timeout`` s."""
+    """Poll ``check`` until it holds; fail naming ``what`` (and the last topic info) after
+    ``timeout`` s."""
     end = time.monotonic() + timeout
+    LAST_INFO[0] = ''
     while not check():
         if time.monotonic() > end:
-            pytest.fail(f'timed out after {timeout:.0f} s waiting for {what}')
+            pytest.fail(f'timed out after {timeout:.0f} s waiting for {what}'
+                        + (f'; last ros2 topic info:\n{LAST_INFO[0]}' if LAST_INFO[0] else ''))
         time.sleep(0.5)
 
 
@@ -115,6 +122,7 @@ def topics() -> set[str]:
 def counts(topic: str) -> tuple[int, int]:
     """(publishers, subscriptions) of ``topic`` from ``ros2 topic info``."""
     res = ros2('topic', 'info', '--no-daemon', '--spin-time', '2', topic)
+    LAST_INFO[0] = res.stdout + res.stderr
     pubs = subs = 0
     for line in res.stdout.splitlines():
         if line.startswith('Publisher count:'):
