@@ -392,27 +392,16 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
     return lines
 
 
+#: How a ``--csv`` cell becomes a :class:`Row` field, by the field's annotation.
+_PARSE: dict[str, Any] = {'int': int, 'float': float, 'str': str, 'bool': lambda v: v == 'True',
+                          'int | None': lambda v: None if v == '' else int(v)}
+
+
 def read_rows(path: Path) -> list[Row]:
     """Rows of a ``--csv`` file (to print the table and breakdown again)."""
-    types = {f.name: f.type for f in fields(Row)}
-    out = []
+    parse = {f.name: _PARSE[str(f.type)] for f in fields(Row)}
     with open(path, newline='') as f:
-        for d in csv.DictReader(f):
-            vals: dict[str, Any] = {}
-            for k, v in d.items():
-                t = str(types[k])
-                if t in ('int', "<class 'int'>"):
-                    vals[k] = int(v)
-                elif t in ('float', "<class 'float'>"):
-                    vals[k] = float(v)
-                elif t in ('bool', "<class 'bool'>"):
-                    vals[k] = v == 'True'
-                elif 'int | None' in t:
-                    vals[k] = None if v == '' else int(v)
-                else:
-                    vals[k] = v
-            out.append(Row(**vals))
-    return out
+        return [Row(**{k: parse[k](v) for k, v in d.items()}) for d in csv.DictReader(f)]
 
 
 def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+import contextlib
+from dataclasses import dataclass
 import math
 import time
 
@@ -15,6 +17,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import spin_until
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
@@ -228,33 +231,57 @@ def camera_info(calib: CameraCalibration | None) -> CameraInfo:
     return m
 
 
-def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Generator) -> None:
-    """Events before the (latched) camera_info are held, not lost; bad camera_info is rejected."""
-    calib = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.0, 0.0, 0.0))
+@dataclass
+class Lone:
+    """A packetizer node alone with a probe node: events in, frames and diagnostics out."""
+
+    ex: SingleThreadedExecutor
+    probe: Node
+    ev_pub: Publisher
+    frames: list[Image]
+    diags: list[dict[str, str]]
+
+    def wait(self, cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+        return spin_until(self.ex, cond, timeout)
+
+
+@contextlib.contextmanager
+def lone_packetizer(*params: Parameter) -> Iterator[Lone]:
+    """rclpy up, the packetizer node (PER_FRAME events per frame, reliable events,
+    diagnostics every 0.2 s, plus ``params``) and a probe; everything torn down after."""
     rclpy.init()
     node = PacketizerNode(parameter_overrides=[
         Parameter('events_per_frame', value=PER_FRAME), Parameter('events_reliable', value=True),
-        Parameter('rectify', value='equidistant'), Parameter('diagnostics_period_s', value=0.2)])
+        Parameter('diagnostics_period_s', value=0.2), *params])
     probe = Node('probe')
     try:
-        ev_pub = probe.create_publisher(EventPacket, '/packetizer_node/events', qos(1000))
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        info_pub = probe.create_publisher(CameraInfo, '/packetizer_node/camera_info', latched)
-        frames: list[Image] = []
-        diags: list[dict[str, str]] = []
-        probe.create_subscription(Image, '/packetizer_node/frames', frames.append, qos(1000))
+        lone = Lone(SingleThreadedExecutor(), probe,
+                    probe.create_publisher(EventPacket, '/packetizer_node/events', qos(1000)),
+                    [], [])
+        probe.create_subscription(Image, '/packetizer_node/frames', lone.frames.append,
+                                  qos(1000))
         probe.create_subscription(
             DiagnosticArray, '/diagnostics',
-            lambda m: diags.append(ros_msgs.diagnostic_values(m)), 100)
-        ex = SingleThreadedExecutor()
-        ex.add_node(node)
-        ex.add_node(probe)
+            lambda m: lone.diags.append(ros_msgs.diagnostic_values(m)), 100)
+        lone.ex.add_node(node)
+        lone.ex.add_node(probe)
+        assert lone.wait(lambda: lone.ev_pub.get_subscription_count() > 0)
+        yield lone
+    finally:
+        node.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown()
 
-        def wait(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
-            return spin_until(ex, cond, timeout)
 
-        assert wait(lambda: ev_pub.get_subscription_count() > 0)
+def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Generator) -> None:
+    """Events before the (latched) camera_info are held, not lost; bad camera_info is rejected."""
+    calib = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.0, 0.0, 0.0))
+    with lone_packetizer(Parameter('rectify', value='equidistant')) as lone:
+        ev_pub, frames, diags, wait = lone.ev_pub, lone.frames, lone.diags, lone.wait
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        info_pub = lone.probe.create_publisher(CameraInfo, '/packetizer_node/camera_info',
+                                               latched)
         ev = random_events(rng, 6 * PER_FRAME + 50)
         ev_pub.publish(packet(ev[:2500], 0))
         ev_pub.publish(packet(ev[2500:], 1))
@@ -276,33 +303,14 @@ def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Gen
         assert not np.array_equal(plain, images)
         assert wait(lambda: diags[-1].get('waiting_for_camera_info') == 'False'
                     and diags[-1].get('events_held') == '0')
-    finally:
-        node.destroy_node()
-        probe.destroy_node()
-        rclpy.try_shutdown()
 
 
 def test_denoising_packetizer_drops_lone_events_and_counts_them(
         rng: np.random.Generator) -> None:
     """denoise_ms as a ROS parameter: the node's frames are those of the offline packetizer
     with the filter, on packets that split bins, and /diagnostics counts the drops."""
-    rclpy.init()
-    node = PacketizerNode(parameter_overrides=[
-        Parameter('events_per_frame', value=PER_FRAME), Parameter('events_reliable', value=True),
-        Parameter('denoise_ms', value=0.02), Parameter('diagnostics_period_s', value=0.2)])
-    probe = Node('probe')
-    try:
-        ev_pub = probe.create_publisher(EventPacket, '/packetizer_node/events', qos(1000))
-        frames: list[Image] = []
-        diags: list[dict[str, str]] = []
-        probe.create_subscription(Image, '/packetizer_node/frames', frames.append, qos(1000))
-        probe.create_subscription(
-            DiagnosticArray, '/diagnostics',
-            lambda m: diags.append(ros_msgs.diagnostic_values(m)), 100)
-        ex = SingleThreadedExecutor()
-        ex.add_node(node)
-        ex.add_node(probe)
-        assert spin_until(ex, lambda: ev_pub.get_subscription_count() > 0, 10.0)
+    with lone_packetizer(Parameter('denoise_ms', value=0.02)) as lone:
+        ev_pub, frames, diags = lone.ev_pub, lone.frames, lone.diags
         # pairs of neighbouring pixels firing together (kept) among lone events (dropped)
         n = 3000
         # 20 us apart on average, bins of 20 us (a short span: the stream's clock takes long
@@ -324,13 +332,9 @@ def test_denoising_packetizer_drops_lone_events_and_counts_them(
         for a, b in zip(cuts[:-1], cuts[1:], strict=True):
             ref += offline.push(ev[a:b])
         assert offline.denoised > 0.45 * n and len(ref) >= 3       # the ~n/2 lone events
-        assert spin_until(ex, lambda: len(frames) >= len(ref), 10.0)
+        assert lone.wait(lambda: len(frames) >= len(ref))
         got = [ros_msgs.image_to_frame(m) for m in frames]
         assert [tt for tt, _ in got] == [f.t_ns for f in ref]
         assert all(np.array_equal(img, f.image) for (_, img), f in zip(got, ref, strict=True))
-        assert spin_until(ex, lambda: any(d.get('events_denoised') == str(offline.denoised)
-                                          for d in diags), 10.0)
-    finally:
-        node.destroy_node()
-        probe.destroy_node()
-        rclpy.try_shutdown()
+        assert lone.wait(lambda: any(d.get('events_denoised') == str(offline.denoised)
+                                     for d in diags))

@@ -428,24 +428,23 @@ class HRN:
         target = eng.map_target(S, point)
         o1 = eng.overlap(target)
         q = tr.overlap_quality(o1)
+        books = eng.books
         if prior is not None and tr.sparse(n_on) and not rejected \
                 and min(q, tr.sharpness(peak)) < c.tracking.degrade:
             # a poor, sparse frame moves the states only if that clearly improves the
             # match over the prediction: else they keep it (hot pixels, noise, a pause)
-            books = eng.books
             pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
             t0 = eng.map_target(S, pp)
             o0 = eng.overlap(t0)
             q0 = tr.overlap_quality(o0)
             if q - q0 < c.tracking.hold_gain:
-                eng.state.update(prior)
-                sims = eng.similarities()
-                peak = {k: float(np.max(x)) for k, x in sims.items()}
-                point, target, q = pp, t0, q0
+                point, peak, sims, target, q = *self._keep_prior(prior, pp), t0, q0
                 tr.held_frames += 1
             else:
                 tr.overlap = o1
-        tr.update(min(q, tr.sharpness(peak), tr.distinct_term(eng.distinctiveness(target))))
+        # (the distinctiveness's correlation only where its term is on)
+        tr.update(min(q, tr.sharpness(peak), tr.distinct_term(
+            eng.distinctiveness(target) if tr.psr_on else math.nan)))
         if c.tracking.relocalise and tr.search_due():
             kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
             found = self._relocalise(S, point)
@@ -453,16 +452,20 @@ class HRN:
                 point, spread, peak, sims, target = found
             elif kept is not None:      # the gyro carries the states: no unaccepted restart
                 eng.state.update(kept)
-        if gyro and c.tracking.gyro_poor and prior is not None and (tr.state == 'lost' or (
-                tr.state == 'degraded' and tr.quality < c.tracking.degrade)):
+        if gyro and c.tracking.gyro_poor and prior is not None and tr.poor:
             # a poor frame's readout is no measurement: the states keep the gyro's prediction
-            books = eng.books
-            eng.state.update(prior)
-            sims = eng.similarities()
-            peak = {k: float(np.max(x)) for k, x in sims.items()}
-            point = {k: books[k].wrap(v) for k, v in prior_point.items()}
+            point, peak, sims = self._keep_prior(
+                prior, {k: books[k].wrap(v) for k, v in prior_point.items()})
             target = eng.map_target(S, point)
         return point, spread, peak, sims, target
+
+    def _keep_prior(self, prior: dict[str, Any], point: dict[str, float]
+                    ) -> tuple[dict[str, float], dict[str, float], dict[str, Real]]:
+        """Undo the frame's iterations: the states back to the prediction ``prior``, whose
+        pose is ``point`` (wrapped). Returns (point, peak, sims)."""
+        self._engine.state.update(prior)
+        sims = self._engine.similarities()
+        return point, {k: float(np.max(x)) for k, x in sims.items()}, sims
 
     def _follow(self, point: dict[str, float], n_on: int) -> None:
         """Book-keeping of tracked frames: the on-pixel density and the velocity (gated)."""
@@ -530,8 +533,7 @@ class HRN:
             self._raw[name] = val
         # ... and the output: the last tracked pose while lost or on a poor degraded frame,
         # unless the gyro carried the states (its prediction is a measurement of the motion)
-        poor = not gyro and (self.state == 'lost' or (
-            self.state == 'degraded' and self.quality < self.cfg.tracking.degrade))
+        poor = not gyro and self.tracker.poor
         self._out.update(self._held if poor and self._held is not None else self._raw)
         if self.state == 'tracking':
             self._held = dict(self._raw)

@@ -9,7 +9,7 @@ re-localise while lost) stays in :mod:`.network`, which owns the engine.
 
 Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
 ``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
-``relocked(q)``,
+``relocked(q)``, ``psr_on``, ``poor``,
 ``sparse(n_on)``, ``note_tracked(n_on)`` and the attributes ``state``, ``quality``,
 ``overlap``, ``distinct``, ``relocalisations``, ``held_frames``.
 """
@@ -68,24 +68,35 @@ class Tracker:
         c = min(peak.get(k, 1.0) for k in ('h', 'v', 'r'))
         return min(max((c - tc.sharp_floor) / (tc.sharp_full - tc.sharp_floor), 0.0), 1.0)
 
+    @property
+    def psr_on(self) -> bool:
+        """Whether the distinctiveness term is on (``psr_full`` > ``psr_floor``)."""
+        return self.cfg.psr_full > self.cfg.psr_floor
+
+    @property
+    def poor(self) -> bool:
+        """The last frame was poor: lost, or degraded with quality below ``degrade`` (its
+        readout is no measurement: the output holds, or follows the gyro)."""
+        return self.state == 'lost' or (self.state == 'degraded'
+                                        and self.quality < self.cfg.degrade)
+
     def distinct_term(self, ratio: float) -> float:
         """Quality term of the frame's distinctiveness (its peak-to-sidelobe ratio against the
         map at the estimate), smoothed into :attr:`distinct`: a frame of noise, or a texture
         finer than the frame's pixels, overlaps a map learned at its own (wrong) poses as well
         as ever, but it matches there no better than at any other shift. A NaN ratio (an
         engine without the measure) gives 1."""
-        tc = self.cfg
-        if tc.psr_full <= tc.psr_floor or not math.isfinite(ratio):
+        if not self.psr_on or not math.isfinite(ratio):
             return 1.0
         d = self.distinct
-        self.distinct = d = ratio if math.isnan(d) else d + tc.psr_rate * (ratio - d)
+        self.distinct = d = ratio if math.isnan(d) else d + self.cfg.psr_rate * (ratio - d)
         return self.psr_term(d)
 
     def psr_term(self, ratio: float) -> float:
         """A distinctiveness (peak-to-sidelobe ratio) as a quality term in [0, 1], unsmoothed
         (a re-localisation candidate is judged on its own)."""
         tc = self.cfg
-        if tc.psr_full <= tc.psr_floor or not math.isfinite(ratio):
+        if not self.psr_on or not math.isfinite(ratio):
             return 1.0
         return min(max((ratio - tc.psr_floor) / (tc.psr_full - tc.psr_floor), 0.0), 1.0)
 
