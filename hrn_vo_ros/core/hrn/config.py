@@ -232,6 +232,12 @@ class TrackingConfig:
     gyro_poor: bool = param(False, 'with the gyro, a poor frame (lost, or degraded below '
                             '"degrade") leaves the states and the output at the gyro\'s '
                             'prediction instead of its own readout')
+    bootstrap_frames: int = param(12, 'until the map has been tracked (a frame after its first '
+                                  'one tracking), this many consecutive poor frames start a new '
+                                  'map from the current frame, at the pose the output reports '
+                                  '(a first frame of noise before the camera moves has nothing '
+                                  'to track; a jump converges in fewer frames; 0: off)',
+                                  lo=0, hi=1000)
     relocalise: bool = param(True, 'while lost, search the map globally over roll and shift '
                              'and restart the factors from the best candidates')
     rolls: int = param(24, 'roll candidates of the global search (evenly over the full turn)',

@@ -19,7 +19,8 @@ Public API:
     - ``factors`` (``('h', 'v', 'r')``, or with ``'z'``), ``iteration``, ``geometry``,
       ``rejected_frames``, ``innovation_deg``, ``reset()``; tracking (``docs/model.md``,
       section 9): ``state``, ``quality``, ``overlap``, ``distinct``, ``relocalisations``,
-      ``held_frames`` (poor sparse frames that kept the prediction), read from ``tracker``
+      ``held_frames`` (poor sparse frames that kept the prediction), ``restarts`` (maps
+      started afresh by ``tracking.bootstrap_frames``), read from ``tracker``
       (:class:`~hrn_vo_ros.core.hrn.tracking.Tracker`: the quality terms and the state
       machine; the network keeps what acts on the engine: the hold, the gates and the
       re-localisation), and ``hot_pixels``.
@@ -119,6 +120,11 @@ class HRN:
         self._last: Estimate | None = None
         self._raw = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
         self._out = dict(self._raw)     # the output: _raw, or the held pose (_emit)
+        # the pose of the map's origin in the output's frame (moved by each bootstrap restart)
+        self._origin = dict(self._raw)
+        self._established = False      # the map has been tracked (tracking.bootstrap)
+        self._map_iteration = 0         # the iteration at which the map started
+        self.restarts = 0               # bootstrap restarts of the map
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
         self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
@@ -306,12 +312,20 @@ class HRN:
             gyro_deg = math.degrees(float(np.linalg.norm(gyro_delta)))
             sims, point, rejected = self._gate_imu(point, predicted, held, sims, dt_s,
                                                    gyro_deg)
-        learn = c.map.learn and self.iteration > c.map.block_iterations and not rejected
+        learn = (c.map.learn and self.iteration - self._map_iteration > c.map.block_iterations
+                 and not rejected)
         target: Any = None
         if c.tracking.enabled and not first:
             point, spread, peak, sims, target = self._assess(
                 S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro)
         self._point = point
+        if c.tracking.enabled and not first and not self._established:
+            if self.state == 'tracking':
+                self._established = True
+            elif (c.tracking.bootstrap_frames and self.tracker.poor
+                  and self.tracker.bad_run >= c.tracking.bootstrap_frames):
+                # (a jump the states have not caught up with converges within a few frames)
+                return self._restart(canvas, t_ns, spread, peak, sims, gyro=gyro)
         self._follow(point, n_on)
         updated = False
         if learn and (not c.tracking.enabled or (self.state != 'lost'
@@ -459,6 +473,24 @@ class HRN:
             target = eng.map_target(S, point)
         return point, spread, peak, sims, target
 
+    def _restart(self, canvas: Floats, t_ns: int, spread: dict[str, float],
+                 peak: dict[str, float], sims: dict[str, Real], *, gyro: bool) -> Estimate:
+        """Bootstrap (``tracking.bootstrap``): a poor frame before the map was ever tracked
+        says the map's frame had nothing to track (noise before the camera moved, a blur):
+        this frame starts a new map, at the pose the output reports now, and the track
+        must establish itself on it again."""
+        out = self._emit(t_ns, self._point, spread, peak, sims, False, gyro=gyro)
+        self._origin = {k: getattr(out, k) for k in self._origin}
+        self._engine.start(canvas, self.rng)
+        self._map_iteration = self.iteration
+        self._point = dict.fromkeys(self.factors, 0.0)
+        self._raw = dict.fromkeys(self._raw, 0.0)
+        self._held = dict(self._raw)        # a poor frame holds the new origin
+        self._prev = self._velocity = None
+        self.tracker.restart()
+        self.restarts += 1
+        return out
+
     def _keep_prior(self, prior: dict[str, Any], point: dict[str, float]
                     ) -> tuple[dict[str, float], dict[str, float], dict[str, Real]]:
         """Undo the frame's iterations: the states back to the prediction ``prior``, whose
@@ -534,7 +566,8 @@ class HRN:
         # ... and the output: the last tracked pose while lost or on a poor degraded frame,
         # unless the gyro carried the states (its prediction is a measurement of the motion)
         poor = not gyro and self.tracker.poor
-        self._out.update(self._held if poor and self._held is not None else self._raw)
+        self._out.update(self._compose(self._held if poor and self._held is not None
+                                       else self._raw))
         if self.state == 'tracking':
             self._held = dict(self._raw)
         est = Estimate(t_ns=int(t_ns), h=self._out['h'], v=self._out['v'], r=self._out['r'],
@@ -543,6 +576,17 @@ class HRN:
                        quality=self.quality, state=self.state)
         self._last = est
         return est
+
+    def _compose(self, pose: dict[str, float]) -> dict[str, float]:
+        """A pose on the map in the output's frame: the map's origin ``_origin`` composed with
+        it (roll and log zoom add; the shift turns by the origin's roll)."""
+        o = self._origin
+        if not any(o.values()):
+            return dict(pose)
+        c, s = math.cos(o['r']), math.sin(o['r'])
+        return {'h': o['h'] + c * pose['h'] - s * pose['v'],
+                'v': o['v'] + s * pose['h'] + c * pose['v'],
+                'r': o['r'] + pose['r'], 'z': o['z'] + pose['z']}
 
     def _repeat(self, t_ns: int) -> Estimate:
         self._prev = self._velocity = None   # a skipped frame breaks the velocity

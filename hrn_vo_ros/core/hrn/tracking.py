@@ -43,8 +43,16 @@ class Tracker:
         self.density: float | None = None   # running mean on-pixel count of tracked frames
         self.ref: float | None = None   # running reference overlap o_ref
         self._good_run = 0              # consecutive frames of quality >= recover
-        self._bad_run = 0               # consecutive frames of quality < degrade
+        self.bad_run = 0                # consecutive frames of quality < degrade
         self.lost_run = 0               # consecutive lost frames (the search's schedule)
+
+    def restart(self) -> None:
+        """A new map (the network's bootstrap): its references start again and the track is
+        degraded until it establishes itself on the new map."""
+        self.overlap, self.distinct = 1.0, math.nan
+        self.density = self.ref = None
+        self.state = 'degraded'
+        self._good_run = self.bad_run = self.lost_run = 0
 
     # -- quality terms ----------------------------------------------------------------------
 
@@ -108,13 +116,13 @@ class Tracker:
         tc = self.cfg
         self.quality = q
         self._good_run = self._good_run + 1 if q >= tc.recover else 0
-        self._bad_run = self._bad_run + 1 if q < tc.degrade else 0
+        self.bad_run = self.bad_run + 1 if q < tc.degrade else 0
         if self.state == 'tracking' and q < tc.degrade:
             self.state = 'degraded'
         elif self.state == 'degraded':
             if self._good_run >= tc.recover_frames:
                 self.state = 'tracking'
-            elif self._bad_run >= tc.lose_frames:
+            elif self.bad_run >= tc.lose_frames:
                 self.state = 'lost'
         elif self.state == 'lost' and self._good_run >= tc.recover_frames:
             self.state = 'tracking'     # the states found the map again by themselves
@@ -130,7 +138,7 @@ class Tracker:
     def relocked(self, q: float) -> None:
         """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""
         self.quality, self.state = q, 'degraded'
-        self._good_run, self._bad_run, self.lost_run = 1, 0, 0
+        self._good_run, self.bad_run, self.lost_run = 1, 0, 0
         self.relocalisations += 1
 
     # -- on-pixel density -------------------------------------------------------------------

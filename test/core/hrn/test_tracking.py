@@ -433,3 +433,54 @@ def test_tracking_gyro_poor_keeps_poor_frames_at_the_prediction(on: bool) -> Non
         assert max(off_prediction) < 1e-6, off_prediction
     else:
         assert max(off_prediction) > 0.1, off_prediction
+
+
+@pytest.mark.parametrize('bootstrap', [1, 0])
+def test_a_map_started_on_noise_is_replaced_by_the_first_frame_with_structure(
+        bootstrap: int) -> None:
+    """A still camera's first frames are noise (no moving edge makes events): a map started
+    on them has nothing to track. With tracking.bootstrap_frames the first frames of the scene
+    start a new map and the output follows the motion from there (the pose at the new map's
+    frame being the held first pose); without it the track never establishes."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    noise = [(rng.random((72, 96)) < 0.06).astype(np.uint8) for _ in range(10)]
+    poses = trajectory(120, amp_xy=8.0, amp_roll=0.3, period=160.0)   # from pose 0, moving
+    hrn = make({'tracking': {'bootstrap_frames': bootstrap}})
+    est = [hrn.step(f, i * 5_000_000) for i, f in enumerate(noise)]
+    est += run(hrn, scene, poses, rng, t0=len(noise))
+    tail = est[-60:]
+    if not bootstrap:
+        assert hrn.restarts == 0
+        assert sum(e.state == 'tracking' for e in est[len(noise):]) < 0.1 * len(poses)
+        return
+    assert hrn.restarts >= 2        # on the noise, then at the first frame of the scene
+    assert all(e.state != 'tracking' for e in est[1:len(noise) + 1])
+    assert all(e.state == 'tracking' for e in tail)
+    # the output is the pose relative to the scene's first frame (the new map's), at pose 0
+    err = np.abs(np.array([(e.h, e.v, e.r) for e in tail]) - poses[-60:, :3])
+    assert np.all(np.median(err, axis=0) < (0.15, 0.15, 0.004)), np.median(err, axis=0)
+
+
+def test_a_new_map_continues_the_output_from_the_pose_it_starts_at() -> None:
+    """The output composes the new map's poses with the pose at which it started (roll adds,
+    the shift turns by that roll): forcing a new map in the middle of a rolled, shifted
+    track leaves the output on the true trajectory."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    poses = trajectory(200, amp_xy=8.0, amp_roll=0.6, period=200.0)
+    frames = [event_frame(scene, tuple(p), rng) for p in poses]
+    ref, hrn = make(), make()
+    a = [ref.step(f, i) for i, f in enumerate(frames)]
+    k = 60                          # roll about 0.5 rad, shift several px here
+    b = [hrn.step(f, i) for i, f in enumerate(frames[:k])]
+    assert abs(b[-1].r) > 0.3
+    hrn._established = False        # as if the map had never been tracked
+    hrn.tracker.bad_run = hrn.cfg.tracking.bootstrap_frames
+    hrn.tracker.state = 'lost'
+    b.append(hrn._restart(hrn._place(frames[k]), k, {}, {}, {}, gyro=False))
+    b += [hrn.step(f, i) for i, f in enumerate(frames[k + 1:], start=k + 1)]
+    assert hrn.restarts == 1
+    diff = np.abs(np.array([(e.h, e.v, e.r) for e in b[k + 20:]])
+                  - np.array([(e.h, e.v, e.r) for e in a[k + 20:]]))
+    assert np.all(np.median(diff, axis=0) < (0.25, 0.25, 0.003)), np.median(diff, axis=0)
