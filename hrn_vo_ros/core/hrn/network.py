@@ -122,9 +122,7 @@ class HRN:
         self._out = dict(self._raw)     # the output: _raw, or the held pose (_emit)
         # the pose of the map's origin in the output's frame (moved by each bootstrap restart)
         self._origin = dict(self._raw)
-        self._established = False      # the map has been tracked (tracking.bootstrap)
         self._map_iteration = 0         # the iteration at which the map started
-        self.restarts = 0               # bootstrap restarts of the map
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
         self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
@@ -166,6 +164,11 @@ class HRN:
     def held_frames(self) -> int:
         """Poor sparse frames whose update was undone (``tracking.hold_gain``)."""
         return self.tracker.held_frames
+
+    @property
+    def restarts(self) -> int:
+        """Maps started afresh by ``tracking.bootstrap_frames``."""
+        return self.tracker.restarts
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -319,13 +322,8 @@ class HRN:
             point, spread, peak, sims, target = self._assess(
                 S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro)
         self._point = point
-        if c.tracking.enabled and not first and not self._established:
-            if self.state == 'tracking':
-                self._established = True
-            elif (c.tracking.bootstrap_frames and self.tracker.poor
-                  and self.tracker.bad_run >= c.tracking.bootstrap_frames):
-                # (a jump the states have not caught up with converges within a few frames)
-                return self._restart(canvas, t_ns, spread, peak, sims, gyro=gyro)
+        if c.tracking.enabled and not first and self.tracker.bootstrap_due():
+            return self._restart(canvas, t_ns, spread, peak, sims, gyro=gyro)
         self._follow(point, n_on)
         updated = False
         if learn and (not c.tracking.enabled or (self.state != 'lost'
@@ -475,10 +473,10 @@ class HRN:
 
     def _restart(self, canvas: Floats, t_ns: int, spread: dict[str, float],
                  peak: dict[str, float], sims: dict[str, Real], *, gyro: bool) -> Estimate:
-        """Bootstrap (``tracking.bootstrap``): a poor frame before the map was ever tracked
-        says the map's frame had nothing to track (noise before the camera moved, a blur):
-        this frame starts a new map, at the pose the output reports now, and the track
-        must establish itself on it again."""
+        """Bootstrap (``tracking.bootstrap_frames``): poor frames before the map was ever
+        tracked say that the map's frame had nothing to track (noise before the camera moved,
+        a blur): this frame starts a new map, at the pose the output reports now, and the
+        track must establish itself on it again."""
         out = self._emit(t_ns, self._point, spread, peak, sims, False, gyro=gyro)
         self._origin = {k: getattr(out, k) for k in self._origin}
         self._engine.start(canvas, self.rng)
@@ -488,7 +486,6 @@ class HRN:
         self._held = dict(self._raw)        # a poor frame holds the new origin
         self._prev = self._velocity = None
         self.tracker.restart()
-        self.restarts += 1
         return out
 
     def _keep_prior(self, prior: dict[str, Any], point: dict[str, float]

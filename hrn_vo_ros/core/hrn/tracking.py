@@ -9,9 +9,10 @@ re-localise while lost) stays in :mod:`.network`, which owns the engine.
 
 Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
 ``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
-``relocked(q)``, ``psr_on``, ``poor``,
+``bootstrap_due()``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
 ``sparse(n_on)``, ``note_tracked(n_on)`` and the attributes ``state``, ``quality``,
-``overlap``, ``distinct``, ``relocalisations``, ``held_frames``.
+``overlap``, ``distinct``, ``relocalisations``, ``held_frames``, ``established``,
+``restarts``.
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ class Tracker:
         self._good_run = 0              # consecutive frames of quality >= recover
         self.bad_run = 0                # consecutive frames of quality < degrade
         self.lost_run = 0               # consecutive lost frames (the search's schedule)
+        self.established = False        # a frame after the map's first one reached tracking
+        self.restarts = 0               # maps started afresh (bootstrap_due)
 
     def restart(self) -> None:
         """A new map (the network's bootstrap): its references start again and the track is
@@ -53,6 +56,7 @@ class Tracker:
         self.density = self.ref = None
         self.state = 'degraded'
         self._good_run = self.bad_run = self.lost_run = 0
+        self.restarts += 1
 
     # -- quality terms ----------------------------------------------------------------------
 
@@ -129,11 +133,19 @@ class Tracker:
         if self.state == 'tracking' and self.ref is not None and q >= tc.recover:
             self.ref += tc.ref_rate * (self.overlap - self.ref)
         self.lost_run = self.lost_run + 1 if self.state == 'lost' else 0
+        self.established = self.established or self.state == 'tracking'
 
     def search_due(self) -> bool:
         """Whether a lost frame runs the global search: the first lost frame and every
         ``search_every``-th after it."""
         return self.state == 'lost' and (self.lost_run - 1) % self.cfg.search_every == 0
+
+    def bootstrap_due(self) -> bool:
+        """Whether the map should start afresh from the current frame: it has never been
+        tracked and the last ``bootstrap_frames`` frames were all poor (a jump the states have
+        not caught up with yet converges within fewer frames)."""
+        n = self.cfg.bootstrap_frames
+        return bool(n) and not self.established and self.poor and self.bad_run >= n
 
     def relocked(self, q: float) -> None:
         """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""

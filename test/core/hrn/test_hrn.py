@@ -117,7 +117,7 @@ def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
                                            'focal_px': FOCAL}),
                rng=np.random.default_rng(1))
     hrn2._engine, hrn2._started, hrn2._point = hrn._engine, True, hrn._point
-    hrn2._established = True        # a tracked map (no bootstrap restart of its map)
+    hrn2.tracker.established = True        # a tracked map (no bootstrap restart of its map)
     hrn2._engine.cfg = hrn2.cfg
     e1 = hrn2.step(frame, 99, gyro_delta=np.array([-0.02, 0.05, 0.1]))
     assert e1.h - e0.h == pytest.approx(FOCAL * 0.05, abs=0.15)

@@ -475,7 +475,7 @@ def test_a_new_map_continues_the_output_from_the_pose_it_starts_at() -> None:
     k = 60                          # roll about 0.5 rad, shift several px here
     b = [hrn.step(f, i) for i, f in enumerate(frames[:k])]
     assert abs(b[-1].r) > 0.3
-    hrn._established = False        # as if the map had never been tracked
+    hrn.tracker.established = False        # as if the map had never been tracked
     hrn.tracker.bad_run = hrn.cfg.tracking.bootstrap_frames
     hrn.tracker.state = 'lost'
     b.append(hrn._restart(hrn._place(frames[k]), k, {}, {}, {}, gyro=False))
