@@ -46,6 +46,7 @@ from hrn_vo_ros.core.hrn.dense import DenseEngine
 from hrn_vo_ros.core.hrn.engine import Engine, EngineFactory
 from hrn_vo_ros.core.hrn.fast import FastEngine
 from hrn_vo_ros.core.hrn.logpolar import make_geometry
+from hrn_vo_ros.core.hrn.pose import ReportedPose
 from hrn_vo_ros.core.hrn.shared import (
     centred_mod,
     Complex,
@@ -110,6 +111,7 @@ class HRN:
         self._blur32 = (self._blur.astype(np.float32) if self._blur is not None
                         and self._engine.blur_dtype is np.float32 else None)
         self.tracker = Tracker(c.tracking)     # quality and state (core/hrn/tracking.py)
+        self._pose = ReportedPose()            # the output (core/hrn/pose.py)
         self.reset()
 
     def reset(self) -> None:
@@ -118,10 +120,7 @@ class HRN:
         self._started = False
         self._point = dict.fromkeys(self.factors, 0.0)          # index units, wrapped
         self._last: Estimate | None = None
-        self._raw = dict.fromkeys(('h', 'v', 'r', 'z'), 0.0)    # physical, unwrapped
-        self._out = dict(self._raw)     # the output: _raw, or the held pose (_emit)
-        # the pose of the map's origin in the output's frame (moved by each bootstrap restart)
-        self._origin = dict(self._raw)
+        self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
@@ -130,7 +129,6 @@ class HRN:
         self._prev: dict[str, float] | None = None  # readout of the last valid frame
         self._velocity: dict[str, float] | None = None   # smoothed readout change per frame
         self.tracker.reset()
-        self._held: dict[str, float] | None = None   # output of the last tracking frame
         self._on_frac = np.zeros((self.cfg.height, self.cfg.width))  # running on-fraction
         self.hot_pixels = 0             # on pixels masked as hot in the last frame
 
@@ -344,7 +342,8 @@ class HRN:
         if not img.any():
             return None
         if self._sphere is not None and self._started:   # the last pose's non-rigid part
-            img = self._sphere.warp(img, self._raw['h'], self._raw['v'], self._raw['r'])
+            raw = self._pose.raw
+            img = self._sphere.warp(img, raw['h'], raw['v'], raw['r'])
             if not img.any():             # every event warped off the frame: nothing to use
                 return None
         return img, int(np.count_nonzero(img))
@@ -478,12 +477,10 @@ class HRN:
         a blur): this frame starts a new map, at the pose the output reports now, and the
         track must establish itself on it again."""
         out = self._emit(t_ns, self._point, spread, peak, sims, False, gyro=gyro)
-        self._origin = {k: getattr(out, k) for k in self._origin}
+        self._pose.restart()
         self._engine.start(canvas, self.rng)
         self._map_iteration = self.iteration
         self._point = dict.fromkeys(self.factors, 0.0)
-        self._raw = dict.fromkeys(self._raw, 0.0)
-        self._held = dict(self._raw)        # a poor frame holds the new origin
         self._prev = self._velocity = None
         self.tracker.restart()
         return out
@@ -549,41 +546,16 @@ class HRN:
     def _emit(self, t_ns: int, point: dict[str, float], spread: dict[str, float],
               peak: dict[str, float], sims: dict[str, Real], updated: bool, *,
               gyro: bool = False) -> Estimate:
-        books = self._engine.books
-        # the network's own pose (unwrapped against the last tracked one, so that the wild
-        # readouts of poor frames cannot carry it a whole canvas or turn away) ...
-        ref = self._held if self._held is not None else self._raw
-        for name, idx in point.items():
-            b = books[name]
-            val = b.sign * b.unit * idx
-            if b.period is not None:
-                prev = ref[name]
-                val = prev + centred_mod(val - prev, b.period * b.unit)
-            self._raw[name] = val
-        # ... and the output: the last tracked pose while lost or on a poor degraded frame,
-        # unless the gyro carried the states (its prediction is a measurement of the motion)
-        poor = not gyro and self.tracker.poor
-        self._out.update(self._compose(self._held if poor and self._held is not None
-                                       else self._raw))
-        if self.state == 'tracking':
-            self._held = dict(self._raw)
-        est = Estimate(t_ns=int(t_ns), h=self._out['h'], v=self._out['v'], r=self._out['r'],
-                       z=self._out['z'], confidence=peak, spread=spread,
+        # the output: the last tracked pose while lost or on a poor degraded frame, unless
+        # the gyro carried the states (its prediction is a measurement of the motion)
+        out = self._pose.update(point, self._engine.books, hold=not gyro and self.tracker.poor,
+                                tracking=self.state == 'tracking')
+        est = Estimate(t_ns=int(t_ns), h=out['h'], v=out['v'], r=out['r'],
+                       z=out['z'], confidence=peak, spread=spread,
                        iteration=self.iteration, map_updated=updated, similarity=sims,
                        quality=self.quality, state=self.state)
         self._last = est
         return est
-
-    def _compose(self, pose: dict[str, float]) -> dict[str, float]:
-        """A pose on the map in the output's frame: the map's origin ``_origin`` composed with
-        it (roll and log zoom add; the shift turns by the origin's roll)."""
-        o = self._origin
-        if not any(o.values()):
-            return dict(pose)
-        c, s = math.cos(o['r']), math.sin(o['r'])
-        return {'h': o['h'] + c * pose['h'] - s * pose['v'],
-                'v': o['v'] + s * pose['h'] + c * pose['v'],
-                'r': o['r'] + pose['r'], 'z': o['z'] + pose['z']}
 
     def _repeat(self, t_ns: int) -> Estimate:
         self._prev = self._velocity = None   # a skipped frame breaks the velocity
