@@ -350,6 +350,23 @@ def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
 RATE_BANDS = ((0.0, 2e4, '<20k ev/s'), (2e4, 1e5, '20-100k'), (1e5, math.inf, '>=100k'))
 
 
+#: Background-noise bands of the breakdown (events per pixel per second, the draw's
+#: ``noise_rate_hz``, log-uniform 0.01-1 Hz: about a quarter of the draws are at 0.3 or more).
+NOISE_BANDS = ((0.0, 0.3, 'noise <0.3 Hz'), (0.3, math.inf, '>=0.3 Hz'))
+
+
+def noise_of(r: Row) -> float | None:
+    """The draw's background-noise rate in Hz per pixel (from its summary line:
+    ``..., noise 0.12 Hz, ...``), or None where the summary has none."""
+    _, found, rest = r.draw.partition(', noise ')
+    if not found:
+        return None
+    try:
+        return float(rest.split(' Hz')[0])
+    except ValueError:
+        return None
+
+
 def scene_of(r: Row) -> str:
     """The draw's scene class (from its summary line: ``... (split): <scene> at ...``)."""
     head, _, rest = r.draw.partition('): ')
@@ -368,10 +385,10 @@ def unevaluable(r: Row) -> str:
 
 
 def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
-    """Tracked / draws per scene class and per event-rate band, and the unevaluated rows by
-    cause: where each method fails."""
-    lines = ['tracked per scene class and event rate; unevaluated: too few estimates (few), '
-             'an estimate that never moves (still), other']
+    """Tracked / draws per scene class, event-rate band and background-noise band, and the
+    unevaluated rows by cause: where each method fails."""
+    lines = ['tracked per scene class, event rate and background noise (Hz per pixel); '
+             'unevaluated: too few estimates (few), an estimate that never moves (still), other']
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method]
@@ -383,6 +400,10 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                 parts.append(f'{scene} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
             for lo, hi, name in RATE_BANDS:
                 sub = [r for r in rs if lo <= r.events_per_s < hi]
+                if sub:
+                    parts.append(f'{name} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
+            for lo, hi, name in NOISE_BANDS:
+                sub = [r for r in rs if (n := noise_of(r)) is not None and lo <= n < hi]
                 if sub:
                     parts.append(f'{name} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
             why = [unevaluable(r) for r in rs]

@@ -59,7 +59,7 @@ CASES = {
                                                'hrn', '--jobs', '1', '--pset', 'denoise_ms=2',
                                                '--csv', '{work}/r.csv'),
                        ('1 sequences in', 'tracked  time ok', 'rotation     hrn',
-                        'unevaluated few'),
+                        'background noise', ' Hz ', 'unevaluated few'),
                        then=('--rows', '{work}/r.csv', '--plot', '{work}/r.png'),
                        then_expect=('tracked  time ok', 'rotation     hrn', 'plot ->')),
     # two 2.5 s loops of the demo bag through the real node processes
