@@ -25,6 +25,14 @@ the events that none of their 8 neighbouring sensor pixels supports within the s
 previous bin of ``denoise_ms`` (background activity, hot pixels). It holds back the newest bin,
 so frames come out up to ``denoise_ms`` later; :attr:`Packetizer.denoised` counts the drops.
 
+**Noisy sensors** (``noise_floor_hz`` > 0; :mod:`.noise`): the stream's background rate is
+measured on its first full window of ``noise_window_ms`` (events per second per sensor pixel;
+the camera starts at rest or slow), and no frame comes out before it is. At or above
+``noise_floor_hz`` every frame pixel needs one event more than ``min_events_per_pixel`` for the
+whole stream: a lone background event no longer lights a pixel, an edge's several events still
+do. The decision is frozen: frames whose threshold changed under a running map would no longer
+match it. :attr:`Packetizer.background_hz` and :attr:`Packetizer.noisy` report it.
+
 Packetizing is vectorised: one ``bincount`` (or one scatter when any event lights a pixel) over
 ``packet * H * W + pixel`` for all complete packets of a batch; no per-event Python.
 """
@@ -42,6 +50,7 @@ from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import rectified_pixels, RECTIFY_MODES
 from hrn_vo_ros.core.events.denoise import NeighbourFilter
+from hrn_vo_ros.core.events.noise import BackgroundRate
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.errors import ConfigError, DatasetError, TrackingError
 
@@ -95,6 +104,14 @@ class PacketizerConfig:
                               'of its 8 neighbouring sensor pixels fired in the same or the '
                               'previous bin of this many ms (lone noise events and hot pixels '
                               'go; delays events by up to one bin); 0: off', lo=0.0, hi=1000.0)
+    noise_floor_hz: float = param(0.0, 'when the background rate (events per second per '
+                                  'sensor pixel in the first full window of the stream, '
+                                  'noise_window_ms) is at least this, every frame pixel needs '
+                                  'one event more than min_events_per_pixel (a noisy sensor); '
+                                  'no frame comes out before it is measured; 0: off',
+                                  lo=0.0, hi=1e6)
+    noise_window_ms: float = param(250.0, 'window of the background-rate measurement, ms',
+                                   lo=1.0, hi=1e6)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
 
     def __post_init__(self) -> None:
@@ -181,18 +198,21 @@ class _Binner:
             return pix, ev.t
         return pix[inside], ev.t[inside]
 
-    def images(self, pix: NDArray[np.int32], n_packets: int) -> NDArray[np.uint8]:
-        """Binary frames of ``n_packets`` consecutive full packets from flat pixel indices."""
+    def images(self, pix: NDArray[np.int32], n_packets: int, noisy: bool = False
+               ) -> NDArray[np.uint8]:
+        """Binary frames of ``n_packets`` consecutive full packets from flat pixel indices
+        (``noisy``: a pixel needs one event more than ``min_events_per_pixel``)."""
         npx = self.h * self.w
         k = self.cfg.events_per_frame
         flat = pix[:n_packets * k].astype(np.intp)
         flat += np.repeat(np.arange(n_packets, dtype=np.intp) * npx, k)
-        if self.cfg.min_events_per_pixel <= 1:
+        need = self.cfg.min_events_per_pixel + int(noisy)
+        if need <= 1:
             out = np.zeros(n_packets * npx, np.uint8)
             out[flat] = 1
         else:
             counts = np.bincount(flat, minlength=n_packets * npx)
-            out = (counts >= self.cfg.min_events_per_pixel).astype(np.uint8)
+            out = (counts >= need).astype(np.uint8)
         return out.reshape(n_packets, self.h, self.w)
 
 
@@ -277,6 +297,14 @@ def denoiser(cfg: PacketizerConfig) -> NeighbourFilter | None:
                            max(1, round(cfg.denoise_ms * 1e6)))
 
 
+def background(cfg: PacketizerConfig) -> BackgroundRate | None:
+    """The background-rate measurement of ``cfg`` (None when ``noise_floor_hz`` is 0)."""
+    if cfg.noise_floor_hz <= 0.0:
+        return None
+    return BackgroundRate(cfg.sensor_width * cfg.sensor_height,
+                          max(1, round(cfg.noise_window_ms * 1e6)))
+
+
 def frames_from_events(ev: EventArray, cfg: PacketizerConfig
                        ) -> tuple[NDArray[np.int64], NDArray[np.uint8]]:
     """All complete packets of ``ev`` as frames (a trailing partial packet is dropped).
@@ -296,13 +324,17 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     """
     b = _Binner(cfg)
     b.check(ev)
+    probe = background(cfg)
+    rate = None if probe is None else probe.push(ev.t)
     f = denoiser(cfg)
     if f is not None:
         ev = EventArray.concatenate([f.push(ev), f.flush()])
     k = cfg.events_per_frame
     pix, t = b.pixels(ev)
     n = len(t) // k
-    images = b.images(pix, n)
+    if probe is not None and rate is None:      # too short to measure: no frame (as a stream)
+        n = 0
+    images = b.images(pix, n, rate is not None and rate >= cfg.noise_floor_hz)
     t = t[:n * k]
     first, last = t[0::k], t[k - 1::k]
     return first + (last - first) // 2, images
@@ -327,6 +359,7 @@ class Packetizer:
         self._last_t: int | None = None
         self._outside = 0
         self._filter = denoiser(self.cfg)
+        self._probe = background(self.cfg)
 
     @property
     def pending(self) -> int:
@@ -348,11 +381,25 @@ class Packetizer:
         """Events the background-activity filter holds back (its newest, open bin)."""
         return 0 if self._filter is None else self._filter.pending
 
+    @property
+    def background_hz(self) -> float | None:
+        """The measured background rate, Hz per sensor pixel (None: ``noise_floor_hz`` off,
+        or not measured yet)."""
+        return None if self._probe is None else self._probe.rate_hz
+
+    @property
+    def noisy(self) -> bool:
+        """Whether frame pixels need one event more (``noise_floor_hz``)."""
+        rate = self.background_hz
+        return rate is not None and rate >= self.cfg.noise_floor_hz
+
     def reset(self) -> None:
-        """Drop pending events and the time-order memory."""
+        """Drop pending events, the time-order memory and the background measurement."""
         self._pend_pix, self._pend_t, self._pending, self._last_t = [], [], 0, None
         if self._filter is not None:
             self._filter.reset()
+        if self._probe is not None:
+            self._probe.reset()
 
     def push(self, ev: EventArray) -> list[EventFrame]:
         """Add events (in time order) and return the frames they complete.
@@ -369,13 +416,14 @@ class Packetizer:
                    f'at {self._last_t} ns; feed batches in time order (or reset())')
             raise DatasetError(msg)
         self._last_t = int(ev.t[-1])
+        waiting = self._probe is not None and self._probe.push(ev.t) is None
         if self._filter is not None:
             ev = self._filter.push(ev)
         k = self.cfg.events_per_frame
         pix, t = self._b.pixels(ev)
         self._outside += len(ev) - len(t)
         total = self._pending + len(t)
-        if total < k:
+        if total < k or waiting:        # (frames wait for the background rate's measurement)
             self._pend_pix.append(pix)
             self._pend_t.append(t)
             self._pending = total
@@ -384,9 +432,9 @@ class Packetizer:
             pix = np.concatenate([*self._pend_pix, pix])
             t = np.concatenate([*self._pend_t, t])
         n = total // k
-        images = self._b.images(pix, n)
         used = n * k
         first, last = t[0:used:k], t[k - 1:used:k]
+        images = self._b.images(pix, n, self.noisy)
         mid = first + (last - first) // 2
         rest = total - used
         self._pend_pix = [pix[used:].copy()] if rest else []
