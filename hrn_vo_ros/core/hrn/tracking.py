@@ -34,29 +34,30 @@ class Tracker:
         self.reset()
 
     def reset(self) -> None:
-        """Back to a fresh track: state tracking, no references yet."""
-        self.state = 'tracking'         # tracking / degraded / lost
+        """Back to a fresh track: state tracking, no references yet, counters at zero."""
         self.quality = 1.0              # quality of the last valid frame
-        self.overlap = 1.0              # its frame-map overlap at the estimate
-        self.distinct = math.nan        # smoothed distinctiveness (NaN: not computed yet)
         self.relocalisations = 0        # accepted re-localisations
         self.held_frames = 0            # poor sparse frames whose update was undone
+        self.established = False        # a frame after the map's first one reached tracking
+        self.restarts = 0               # maps started afresh (bootstrap_due)
+        self._new_map('tracking')
+
+    def restart(self) -> None:
+        """A new map (the network's bootstrap): its references start again and the track is
+        degraded until it establishes itself on the new map."""
+        self._new_map('degraded')
+        self.restarts += 1
+
+    def _new_map(self, state: str) -> None:
+        """What a map's references and runs start from, in ``state``."""
+        self.state = state              # tracking / degraded / lost
+        self.overlap = 1.0              # the last frame's frame-map overlap at the estimate
+        self.distinct = math.nan        # smoothed distinctiveness (NaN: not computed yet)
         self.density: float | None = None   # running mean on-pixel count of tracked frames
         self.ref: float | None = None   # running reference overlap o_ref
         self._good_run = 0              # consecutive frames of quality >= recover
         self.bad_run = 0                # consecutive frames of quality < degrade
         self.lost_run = 0               # consecutive lost frames (the search's schedule)
-        self.established = False        # a frame after the map's first one reached tracking
-        self.restarts = 0               # maps started afresh (bootstrap_due)
-
-    def restart(self) -> None:
-        """A new map (the network's bootstrap): its references start again and the track is
-        degraded until it establishes itself on the new map."""
-        self.overlap, self.distinct = 1.0, math.nan
-        self.density = self.ref = None
-        self.state = 'degraded'
-        self._good_run = self.bad_run = self.lost_run = 0
-        self.restarts += 1
 
     # -- quality terms ----------------------------------------------------------------------
 
