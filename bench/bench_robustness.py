@@ -398,14 +398,12 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
             for scene in sorted({scene_of(r) for r in rs}):
                 sub = [r for r in rs if scene_of(r) == scene]
                 parts.append(f'{scene} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
-            for lo, hi, name in RATE_BANDS:
-                sub = [r for r in rs if lo <= r.events_per_s < hi]
-                if sub:
-                    parts.append(f'{name} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
-            for lo, hi, name in NOISE_BANDS:
-                sub = [r for r in rs if (n := noise_of(r)) is not None and lo <= n < hi]
-                if sub:
-                    parts.append(f'{name} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
+            for bands, value in ((RATE_BANDS, lambda r: r.events_per_s),
+                                 (NOISE_BANDS, noise_of)):
+                for lo, hi, name in bands:
+                    sub = [r for r in rs if (x := value(r)) is not None and lo <= x < hi]
+                    if sub:
+                        parts.append(f'{name} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
             why = [unevaluable(r) for r in rs]
             parts.append('unevaluated ' + ' '.join(
                 f'{k} {why.count(k)}' for k in ('few', 'still', 'other')))

@@ -305,6 +305,12 @@ def background(cfg: PacketizerConfig) -> BackgroundRate | None:
                           max(1, round(cfg.noise_window_ms * 1e6)))
 
 
+def _noisy(cfg: PacketizerConfig, rate_hz: float | None) -> bool:
+    """Whether a stream of measured background rate ``rate_hz`` (None: not measured, or
+    ``noise_floor_hz`` off) needs one event more per frame pixel."""
+    return rate_hz is not None and rate_hz >= cfg.noise_floor_hz
+
+
 def frames_from_events(ev: EventArray, cfg: PacketizerConfig
                        ) -> tuple[NDArray[np.int64], NDArray[np.uint8]]:
     """All complete packets of ``ev`` as frames (a trailing partial packet is dropped).
@@ -334,7 +340,7 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     n = len(t) // k
     if probe is not None and rate is None:      # too short to measure: no frame (as a stream)
         n = 0
-    images = b.images(pix, n, rate is not None and rate >= cfg.noise_floor_hz)
+    images = b.images(pix, n, _noisy(cfg, rate))
     t = t[:n * k]
     first, last = t[0::k], t[k - 1::k]
     return first + (last - first) // 2, images
@@ -390,8 +396,7 @@ class Packetizer:
     @property
     def noisy(self) -> bool:
         """Whether frame pixels need one event more (``noise_floor_hz``)."""
-        rate = self.background_hz
-        return rate is not None and rate >= self.cfg.noise_floor_hz
+        return _noisy(self.cfg, self.background_hz)
 
     def reset(self) -> None:
         """Drop pending events, the time-order memory and the background measurement."""
