@@ -32,7 +32,8 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
 keyed by kind, seed and length), so that a second run, e.g. with ``--set``, skips the
 simulation (the events are kept too, so that ``--pset`` runs skip it as well); ``--set
 KEY=VALUE`` overrides resonator settings of the HRN methods (as ``hrn-vo run --set``),
-``--pset KEY=VALUE`` packetizer settings of every method. ``--trace DIR`` writes, per
+``--pset KEY=VALUE`` packetizer settings of every method, ``--sset KEY=VALUE`` the spiking
+method's emulation settings (``SpikingConfig``). ``--trace DIR`` writes, per
 sequence and method, ``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time, error,
 state and quality (the error-vs-time of the failures).
 
@@ -74,11 +75,12 @@ from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBas
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
-from hrn_vo_ros.core.hrn.backends import make_backend  # noqa: E402
+from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402
 from hrn_vo_ros.core.pipeline import OdometryPipeline  # noqa: E402
 from hrn_vo_ros.core.sim.family import draw, fresh_seeds, simulate_draw, tuning_seeds  # noqa: E402
 from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
+from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs  # noqa: E402
 
@@ -119,11 +121,15 @@ class Row:
 OVERRIDES: dict[str, Any] = {}
 #: Packetizer overrides of every method (``--pset``; they change the frames).
 P_OVERRIDES: dict[str, Any] = {}
+#: Spiking-emulation settings of the spiking method (``--sset``, :class:`SpikingConfig`).
+S_OVERRIDES: dict[str, Any] = {}
 
 
-def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None) -> None:
+def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None,
+          s_overrides: dict[str, Any] | None = None) -> None:
     OVERRIDES.update(overrides)
     P_OVERRIDES.update(p_overrides or {})
+    S_OVERRIDES.update(s_overrides or {})
 
 
 def _value(text: str) -> Any:
@@ -192,8 +198,9 @@ def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
     if method == 'baseline':
         est: Any = PhaseCorrelationBaseline(config_like(rcfg))
     else:
-        est = make_backend(rcfg, rng=np.random.default_rng(0),
-                           backend='spiking' if method == 'spiking' else 'float')
+        backend = (BackendConfig(name='spiking', spiking=SpikingConfig(**S_OVERRIDES))
+                   if method == 'spiking' else BackendConfig())
+        est = make_backend(rcfg, rng=np.random.default_rng(0), backend=backend)
         if method == 'hrn_imu':
             assert seq.imu is not None
             rot = np.asarray(rcfg.imu.camera_from_imu, dtype=np.float64).reshape(3, 3)
@@ -472,6 +479,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--pset', action='append', default=[], metavar='KEY=VALUE',
                    help='override a packetizer setting of every method (repeatable; the '
                         'frames change, so the cache keeps them apart)')
+    p.add_argument('--sset', action='append', default=[], metavar='KEY=VALUE',
+                   help='override a spiking-emulation setting of the spiking method '
+                        '(SpikingConfig, e.g. precision=float; repeatable)')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
                    help='run these seeds instead of the first -n of the split')
     p.add_argument('--rows', type=Path, nargs='+', default=None,
@@ -500,7 +510,8 @@ def main(argv: list[str] | None = None) -> int:
     cache = '' if args.cache is None else str(args.cache)
     over: dict[str, Any] = {}
     p_over: dict[str, Any] = {}
-    for items, into in ((args.set, over), (args.pset, p_over)):
+    s_over: dict[str, Any] = {}
+    for items, into in ((args.set, over), (args.pset, p_over), (args.sset, s_over)):
         for item in items:
             key, _, val = item.partition('=')
             into[key.strip()] = _value(val.strip())
@@ -511,7 +522,8 @@ def main(argv: list[str] | None = None) -> int:
           flush=True)
     t0 = time.perf_counter()
     rows: list[Row] = []
-    with multiprocessing.get_context('spawn').Pool(args.jobs, _init, (over, p_over)) as pool:
+    ctx = multiprocessing.get_context('spawn')
+    with ctx.Pool(args.jobs, _init, (over, p_over, s_over)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]

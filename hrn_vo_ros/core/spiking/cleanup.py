@@ -78,10 +78,20 @@ class SpikingCleanup:
     _out: ComplexSynapses = field(init=False)
     _mix: ComplexSynapses = field(init=False)
     _theta: float = field(init=False)
+    _dc: NDArray[np.intp] = field(init=False)
 
     def __post_init__(self) -> None:
         x = np.asarray(self.codebook, dtype=np.complex128)
-        self._sim = ComplexSynapses(x.conj().T, self.cfg, name=f'{self.name}.similarity')
+        # DC neurons: elements whose codebook row is the same for every entry (a DFT book's
+        # frequency 0) add the same to every similarity; in a spectrum they dwarf the others
+        # (10^3-10^4 x the median element), so they send on a wider payload instead of setting
+        # the unit of the whole population (SpikingConfig.dc_payload_bits)
+        same = np.all(np.abs(x - x[:, :1]) <= 1e-9 * np.abs(x).max(initial=1.0), axis=1)
+        self._dc = np.flatnonzero(same) if self.cfg.dc_wide else np.zeros(0, np.intp)
+        tops = np.full(x.shape[0], (1 << self.cfg.payload_bits) - 1, np.int64)
+        tops[self._dc] = (1 << self.cfg.dc_payload_bits) - 1
+        self._sim = ComplexSynapses(x.conj().T, self.cfg, name=f'{self.name}.similarity',
+                                    tops=tops)
         self._out = ComplexSynapses(x, self.cfg, name=f'{self.name}.cleanup')
         # Self-connection and input weight of each state neuron (one shared exponent).
         self._mix = ComplexSynapses(np.array([[1.0 - self.gamma, self.gamma]]), self.cfg,
@@ -141,7 +151,7 @@ class SpikingCleanup:
 
     def _input(self, u: Complex) -> Spikes:
         """Layer 1: the input neurons' spikes."""
-        u_sp = encode(u, self.cfg)
+        u_sp = encode(u, self.cfg, wide=self._dc, wide_bits=self.cfg.dc_payload_bits)
         self.last_input = u_sp
         ci = self.counts['input']
         ci.spikes_in += u_sp.count

@@ -65,6 +65,10 @@ class SpikingConfig:
     payload_bits: int = param(
         8, 'bits of a graded spike payload (amplitude); 1 = binary spikes (Loihi 1)', lo=1,
         hi=24, read_only=True)
+    dc_payload_bits: int = param(
+        12, "payload bits of a cleanup input's DC neuron (the element that adds the same to "
+        'every similarity); the rest of the population keeps payload_bits in a finer unit '
+        '(<= payload_bits: one unit for all, sized by the DC term)', lo=1, hi=24, read_only=True)
     state_bits: int = param(
         24, 'bits of the signed integer neuron state (Loihi compartment voltage: 24)', lo=12,
         hi=32, read_only=True)
@@ -97,6 +101,16 @@ class SpikingConfig:
                    f'{self.max_delay} (Loihi 1 allows at most {LOIHI_MAX_DELAY}); choose '
                    f'steps_per_cycle <= {self.max_delay + 1}')
             raise ConfigError(msg)
+
+    @property
+    def dc_wide(self) -> bool:
+        """Whether cleanup inputs send their DC neuron on the wider ``dc_payload_bits``."""
+        return self.dc_payload_bits > self.payload_bits > 1
+
+    @property
+    def widest_payload(self) -> int:
+        """The largest graded-spike payload any neuron sends, in bits."""
+        return self.dc_payload_bits if self.dc_wide else self.payload_bits
 
     @property
     def quantised(self) -> bool:

@@ -106,7 +106,8 @@ def payload_exponent(max_value: float, bits: int) -> int:
     return math.ceil(math.log2(max_value / top))
 
 
-def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = None) -> Spikes:
+def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = None,
+           wide: NDArray[np.intp] | None = None, wide_bits: int = 0) -> Spikes:
     """Send complex values as phase-coded spikes with graded payloads.
 
     The payload unit is a power of two chosen from the population's largest magnitude (a
@@ -119,6 +120,10 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
         cfg: Steps per cycle, payload bits and the default firing threshold.
         fire_threshold: Neurons with ``|z| < fire_threshold * mean|z|`` stay silent (TPAM
             threshold); default ``cfg.fire_threshold``.
+        wide: Flat indices of neurons with a wider payload of ``wide_bits`` (> payload_bits):
+            the unit is then the smallest that holds the others in ``payload_bits`` and these
+            in ``wide_bits``, so one dominant neuron (a spectrum's DC term) does not set the
+            unit of all ([design], cleanup inputs; graded payloads, ``payload_bits`` >= 2).
 
     Shapes:
         z: any; the spikes have the same shape.
@@ -133,7 +138,14 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
         mean = float(mag[live].mean()) if live.any() else 0.0
         e = round(math.log2(mean)) if mean > 0.0 else 0
         return Spikes(t, live.astype(np.int64), e, cfg.steps_per_cycle)
-    e = payload_exponent(float(mag.max()) if mag.size else 0.0, cfg.payload_bits)
+    if wide is not None and wide.size and wide_bits > cfg.payload_bits and mag.size:
+        flat = mag.reshape(-1)
+        rest = flat.copy()
+        rest[wide] = 0.0
+        e = max(payload_exponent(float(rest.max()), cfg.payload_bits),
+                payload_exponent(float(flat[wide].max()), wide_bits))
+    else:
+        e = payload_exponent(float(mag.max()) if mag.size else 0.0, cfg.payload_bits)
     g = np.where(live, np.rint(np.ldexp(mag, -e)), 0.0).astype(np.int64)
     return Spikes(t, g, e, cfg.steps_per_cycle)
 

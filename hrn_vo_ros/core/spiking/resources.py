@@ -38,7 +38,7 @@ class NetworkResources:
 
     Attributes:
         layers: Every layer. chip: The chip it is mapped to. weight_bits: Of every weight.
-        payload_bits: Of every spike. depth: Layers on the critical path of one iteration.
+        payload_bits: Of the widest spike. depth: Layers on the critical path of one iteration.
         cores_by_layer: Cores of each layer (same order as ``layers``).
     """
 
@@ -139,5 +139,5 @@ def sparse_resources(g: Geometry, tf: SparseTransforms, books: dict[str, tuple[i
         add(f'{k} state', n, 2)
     rev, fwd = tf.depth()
     depth = 1 + max(rev + 3, fwd + 2) + CLEANUP_DEPTH + (1 if p_max else 0)
-    return NetworkResources(layers, chip, cfg.weight_bits, cfg.payload_bits,
+    return NetworkResources(layers, chip, cfg.weight_bits, cfg.widest_payload,
                             cfg.steps_per_cycle - 1 if cfg.synapse == 'delay' else 0, depth)

@@ -91,16 +91,20 @@ def _fit_shift(worst: float, cfg: SpikingConfig) -> int:
     return int(np.clip(math.floor(math.log2(bound / (1.125 * worst))), *SHIFT_RANGE))
 
 
-def state_shift(q: QuantisedWeights, cfg: SpikingConfig) -> int:
+def state_shift(q: QuantisedWeights, cfg: SpikingConfig, tops: Int | None = None) -> int:
     """The left shift from ``mantissa * payload`` into the neuron state (Loihi ``6 + wgt_exp``).
 
     Chosen per connection as the largest value in ``SHIFT_RANGE`` for which the worst-case input
     of one cycle (every presynaptic neuron at full payload, all kicks aligned) cannot exceed the
     state bits, so the integer state never saturates and keeps as many fractional bits as it can
-    ([design]; a hardware mapping would pick ``wgt_exp`` the same way).
+    ([design]; a hardware mapping would pick ``wgt_exp`` the same way). ``tops``: the largest
+    payload of each presynaptic neuron (default ``2^payload_bits - 1`` for all).
     """
-    row = (np.abs(q.re) + np.abs(q.im)).sum(axis=-1)
-    worst = float(row.max(initial=0)) * ((1 << cfg.payload_bits) - 1)
+    mags = np.abs(q.re) + np.abs(q.im)
+    if tops is None:
+        worst = float(mags.sum(axis=-1).max(initial=0)) * ((1 << cfg.payload_bits) - 1)
+    else:
+        worst = float((mags @ np.asarray(tops, np.float64)).max(initial=0))
     return _fit_shift(worst, cfg)
 
 
@@ -129,14 +133,17 @@ class ComplexSynapses:
         weights: The complex weight matrix ``W`` (row = target neuron).
         cfg: Spiking settings (realisation, bits, precision).
         name: Layer name for the accounting.
+        tops: Largest payload of each presynaptic neuron, for the state shift (default
+            ``2^payload_bits - 1`` for all).
 
     Shapes:
-        weights: (n_out, n_in).
+        weights: (n_out, n_in); tops: (n_in,).
     """
 
     weights: Complex
     cfg: SpikingConfig
     name: str = 'synapses'
+    tops: Int | None = None
     _eff: Complex = field(init=False)
     _q: QuantisedWeights | None = field(init=False, default=None)
     _delay: Int | None = field(init=False, default=None)
@@ -171,7 +178,7 @@ class ComplexSynapses:
             else:
                 self._eff = w
         if self._q is not None:
-            self._shift = state_shift(self._q, self.cfg)
+            self._shift = state_shift(self._q, self.cfg, self.tops)
         per_syn = 2 if self.cfg.synapse == 'kick' else 1
         self._nnz_col = per_syn * np.count_nonzero(w, axis=0).astype(np.int64)
 
