@@ -85,8 +85,8 @@ def resource_lines(res: NetworkResources, scfg: SpikingConfig) -> list[str]:
                           res.max_delay, res.depth)
     out.append(f'on {LOIHI1.name} ({LOIHI1.neurons_per_core} neurons/core, 128 KiB/core, binary '
                f'spikes): {l1.cores} cores = {l1.chips} chips'
-               + ('' if scfg.widest_payload <= LOIHI1.payload_bits else
-                  f', and its {scfg.widest_payload}-bit graded payloads do not exist there'))
+               + ('' if res.payload_bits <= LOIHI1.payload_bits else
+                  f', and its {res.payload_bits}-bit graded payloads do not exist there'))
     out.append(f'critical path: {res.depth} layers = {res.depth * scfg.steps_per_cycle} time '
                f'steps per iteration (T = {scfg.steps_per_cycle})')
     return out

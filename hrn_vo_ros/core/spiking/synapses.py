@@ -101,11 +101,8 @@ def state_shift(q: QuantisedWeights, cfg: SpikingConfig, tops: Int | None = None
     payload of each presynaptic neuron (default ``2^payload_bits - 1`` for all).
     """
     mags = np.abs(q.re) + np.abs(q.im)
-    if tops is None:
-        worst = float(mags.sum(axis=-1).max(initial=0)) * ((1 << cfg.payload_bits) - 1)
-    else:
-        worst = float((mags @ np.asarray(tops, np.float64)).max(initial=0))
-    return _fit_shift(worst, cfg)
+    top = np.full(mags.shape[-1], (1 << cfg.payload_bits) - 1) if tops is None else tops
+    return _fit_shift(float((mags @ np.asarray(top, np.float64)).max(initial=0)), cfg)
 
 
 def scale_kicks(k: Int, shift: int) -> Int:

@@ -26,6 +26,8 @@ from hrn_vo_ros.core.spiking.synapses import (
     LayerCounts,
     marginal_drive,
     quantise_weights,
+    QuantisedWeights,
+    state_shift,
 )
 from hrn_vo_ros.errors import ConfigError
 
@@ -119,7 +121,6 @@ def test_a_wide_neuron_does_not_set_the_payload_unit_of_all() -> None:
 
 
 def test_state_shift_counts_each_neurons_largest_payload() -> None:
-    from hrn_vo_ros.core.spiking.synapses import QuantisedWeights, state_shift
     q = QuantisedWeights(np.array([[100, 50]]), np.array([[0, 0]]), 0)
     cfg = SpikingConfig(payload_bits=8, state_bits=24)
     # worst 150 * 255 = 38250: floor(log2((2^23 - 1) / (1.125 * 38250))) = 7
