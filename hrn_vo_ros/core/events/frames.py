@@ -1,4 +1,4 @@
-"""Fixed-count event packets → binary downsampled event frames (paper Methods).
+"""Fixed-count (or time-capped) event packets → binary downsampled event frames (paper Methods).
 
 Polarity is dropped. Coordinates are downsampled by a (possibly fractional) factor ``f``:
 
@@ -12,6 +12,12 @@ same division-and-rounding with pixel centres at x + 0.5.) A pixel is 1 when it 
 than ``min_events_per_pixel - 1`` events (``min_events_per_pixel = 1`` for shapes, 2 for the
 arm), else 0. The frame time is the midpoint of the first and last event of the packet (int64
 ns, rounded down).
+
+**Time-capped packets** (``max_frame_ms`` > 0): a packet also closes once it spans
+``max_frame_ms`` and holds at least ``min_frame_events`` events (:func:`packet_ends`), so a slow
+camera or a sparse scene still gives frames at a steady rate (fixed 2000-event packets give a
+scene of 3 k events/s 1.5 frames/s, too few to follow a rotation). Fast, busy scenes fill their
+``events_per_frame`` first and are binned as before.
 
 **Rectification** (``rectify``: ``none``, ``pinhole`` or ``equidistant``; :mod:`.camera`) moves
 each sensor pixel to its rectified continuous position before the same division and rounding, so
@@ -112,12 +118,27 @@ class PacketizerConfig:
                                   lo=0.0, hi=1e6)
     noise_window_ms: float = param(250.0, 'window of the background-rate measurement, ms',
                                    lo=1.0, hi=1e6)
+    max_frame_ms: float = param(0.0, 'a packet also closes once it spans this many ms and '
+                                'holds at least min_frame_events events (slow or sparse '
+                                'scenes still give frames at a steady rate); 0: off, every '
+                                'packet holds events_per_frame events', lo=0.0, hi=1e6)
+    min_frame_events: int = param(500, 'fewest events of a packet closed by max_frame_ms (a '
+                                  'still camera waits for them)', lo=1, hi=10_000_000)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
 
     def __post_init__(self) -> None:
         validate(self)
         if not math.isfinite(self.downsample):
             raise ConfigError('PacketizerConfig.downsample must be a finite number >= 1')
+        if self.max_frame_ms > 0 and self.min_frame_events > self.events_per_frame:
+            raise ConfigError(f'min_frame_events ({self.min_frame_events}) is above '
+                              f'events_per_frame ({self.events_per_frame}): no packet could '
+                              'close by time; lower min_frame_events or set max_frame_ms 0')
+
+    @property
+    def max_frame_ns(self) -> int:
+        """``max_frame_ms`` in int64 nanoseconds (0: packets close by count only)."""
+        return round(self.max_frame_ms * 1e6)
 
     @property
     def width(self) -> int:
@@ -160,6 +181,36 @@ class EventFrame:
     t_last_ns: int
 
 
+def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]:
+    """End indices (exclusive) of the complete packets of the event times ``t``.
+
+    A packet starting at event ``s`` (time ``t[s]``) closes after ``events_per_frame`` events,
+    or, with ``max_frame_ms`` > 0, at the first event at or after ``t[s] + max_frame_ms`` when
+    it holds at least ``min_frame_events`` by then (else once it holds them). A packet is
+    complete only when later events cannot change it: its count is reached, or an event at or
+    after its window's end has arrived. So the same events give the same packets however they
+    are split into batches.
+
+    Shapes:
+        t: (n,) int64, non-decreasing; returns (n_packets,) intp, increasing.
+    """
+    n, k = len(t), cfg.events_per_frame
+    span = cfg.max_frame_ns
+    if span <= 0:
+        return np.arange(k, n + 1, k, dtype=np.intp)
+    m = cfg.min_frame_events
+    ends: list[int] = []
+    s = 0
+    while s < n:
+        e_time = int(np.searchsorted(t, t[s] + span, 'left'))   # first event past the window
+        e = min(s + k, max(s + m, e_time)) if e_time < n else s + k
+        if e > n:
+            break
+        ends.append(e)
+        s = e
+    return np.asarray(ends, dtype=np.intp)
+
+
 class _Binner:
     """Flat pixel index lookup and packet binning shared by the stateful and batch forms."""
 
@@ -198,14 +249,17 @@ class _Binner:
             return pix, ev.t
         return pix[inside], ev.t[inside]
 
-    def images(self, pix: NDArray[np.int32], n_packets: int, noisy: bool = False
+    def images(self, pix: NDArray[np.int32], ends: NDArray[np.intp], noisy: bool = False
                ) -> NDArray[np.uint8]:
-        """Binary frames of ``n_packets`` consecutive full packets from flat pixel indices
-        (``noisy``: a pixel needs one event more than ``min_events_per_pixel``)."""
+        """Binary frames of the consecutive packets ending at ``ends`` (the first starts at 0)
+        from flat pixel indices (``noisy``: a pixel needs one event more than
+        ``min_events_per_pixel``)."""
         npx = self.h * self.w
-        k = self.cfg.events_per_frame
-        flat = pix[:n_packets * k].astype(np.intp)
-        flat += np.repeat(np.arange(n_packets, dtype=np.intp) * npx, k)
+        n_packets = len(ends)
+        used = int(ends[-1]) if n_packets else 0
+        flat = pix[:used].astype(np.intp)
+        sizes = np.diff(ends, prepend=0)
+        flat += np.repeat(np.arange(n_packets, dtype=np.intp) * npx, sizes)
         need = self.cfg.min_events_per_pixel + int(noisy)
         if need <= 1:
             out = np.zeros(n_packets * npx, np.uint8)
@@ -335,14 +389,12 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     f = denoiser(cfg)
     if f is not None:
         ev = EventArray.concatenate([f.push(ev), f.flush()])
-    k = cfg.events_per_frame
     pix, t = b.pixels(ev)
-    n = len(t) // k
+    ends = packet_ends(t, cfg)
     if probe is not None and rate is None:      # too short to measure: no frame (as a stream)
-        n = 0
-    images = b.images(pix, n, _noisy(cfg, rate))
-    t = t[:n * k]
-    first, last = t[0::k], t[k - 1::k]
+        ends = ends[:0]
+    images = b.images(pix, ends, _noisy(cfg, rate))
+    first, last = t[ends - np.diff(ends, prepend=0)], t[ends - 1]
     return first + (last - first) // 2, images
 
 
@@ -424,11 +476,12 @@ class Packetizer:
         waiting = self._probe is not None and self._probe.push(ev.t) is None
         if self._filter is not None:
             ev = self._filter.push(ev)
-        k = self.cfg.events_per_frame
         pix, t = self._b.pixels(ev)
         self._outside += len(ev) - len(t)
         total = self._pending + len(t)
-        if total < k or waiting:        # (frames wait for the background rate's measurement)
+        timed = self.cfg.max_frame_ns > 0
+        if (total < self.cfg.events_per_frame and not timed) or waiting:
+            # (frames wait for the background rate's measurement)
             self._pend_pix.append(pix)
             self._pend_t.append(t)
             self._pending = total
@@ -436,14 +489,17 @@ class Packetizer:
         if self._pending:
             pix = np.concatenate([*self._pend_pix, pix])
             t = np.concatenate([*self._pend_t, t])
-        n = total // k
-        used = n * k
-        first, last = t[0:used:k], t[k - 1:used:k]
-        images = self._b.images(pix, n, self.noisy)
+        ends = packet_ends(t, self.cfg)
+        n = len(ends)
+        used = int(ends[-1]) if n else 0
+        sizes = np.diff(ends, prepend=0)
+        first, last = t[ends - sizes], t[ends - 1]
+        images = self._b.images(pix, ends, self.noisy) if n else None
         mid = first + (last - first) // 2
         rest = total - used
         self._pend_pix = [pix[used:].copy()] if rest else []
         self._pend_t = [t[used:].copy()] if rest else []
         self._pending = rest
-        return [EventFrame(t_ns=int(mid[i]), image=images[i], n_events=k,
-                           t_first_ns=int(first[i]), t_last_ns=int(last[i])) for i in range(n)]
+        return [EventFrame(t_ns=int(mid[i]), image=images[i], n_events=int(sizes[i]),
+                           t_first_ns=int(first[i]), t_last_ns=int(last[i]))
+                for i in range(n) if images is not None]

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from hrn_vo_ros.core.events.frames import (
     CalibrationConfig,
     downsample_lut,
     frames_from_events,
+    packet_ends,
     Packetizer,
     PacketizerConfig,
     rectify_lut,
@@ -85,6 +88,74 @@ def test_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
     assert (f0.t_first_ns, f0.t_last_ns, f0.n_events) == (int(ev.t[0]), int(ev.t[999]), 1000)
     # One push spanning many frames gives the same result.
     assert [f.t_ns for f in Packetizer(cfg).push(ev)] == t_ref.tolist()
+
+
+def test_time_capped_packet_ends_by_hand() -> None:
+    cfg = PacketizerConfig(events_per_frame=10, min_frame_events=3, max_frame_ms=1.0)
+    ms = 1_000_000
+    t = np.array([*range(12), 2 * ms, 2 * ms + 1, 2 * ms + 2, 2 * ms + 3, 5 * ms], np.int64)
+    # [0, 10): ten events within 1 ms close by count. [10, 13): the packet from t = 10 ns holds
+    # two events in its window, so it waits for its third (at 2 ms). [13, 16): closed by the
+    # event at 5 ms, past the window [2 ms + 1, 3 ms + 1). The event at 5 ms is still open.
+    assert packet_ends(t, cfg).tolist() == [10, 13, 16]
+    # An event exactly at the window's end starts the next packet.
+    assert packet_ends(np.array([0, 1, 2, ms, ms], np.int64), cfg).tolist() == [3]
+    # Off: fixed counts.
+    assert packet_ends(t, PacketizerConfig(events_per_frame=5)).tolist() == [5, 10, 15]
+    with pytest.raises(ConfigError, match='min_frame_events'):
+        PacketizerConfig(events_per_frame=10, min_frame_events=11, max_frame_ms=1.0)
+
+
+def test_time_capped_frames_by_hand() -> None:
+    cfg = PacketizerConfig(events_per_frame=4, sensor_width=20, sensor_height=10, downsample=2.0,
+                           max_frame_ms=0.001, min_frame_events=2)      # 1 us windows
+    ev = EventArray.from_arrays(np.array([100, 200, 1300, 1400, 1500, 3000]),
+                                np.array([0, 19, 4, 4, 5, 0]), np.array([0, 9, 2, 2, 2, 0]),
+                                np.zeros(6, np.int64))
+    t, img = frames_from_events(ev, cfg)
+    assert t.tolist() == [150, 1400]        # [100, 200] by time, [1300, 1500] by the 3000 event
+    expect = np.zeros((2, 5, 10), np.uint8)
+    expect[0, 0, 0] = expect[0, 4, 9] = 1
+    expect[1, 1, 2] = 1                     # x 4 and 5 both fall into column 2
+    np.testing.assert_array_equal(img, expect)
+    frames = Packetizer(cfg).push(ev)
+    assert [(f.t_first_ns, f.t_last_ns, f.n_events) for f in frames] == [(100, 200, 2),
+                                                                            (1300, 1500, 3)]
+
+
+def test_time_capped_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
+    # A stream whose rate swings between busy (count-closed) and slow (time-closed) stretches,
+    # with runs of equal timestamps.
+    gaps = np.concatenate([rng.integers(0, 3000, 8000), rng.integers(0, 400_000, 3000),
+                           rng.integers(0, 3000, 8000), np.zeros(500, np.int64),
+                           rng.integers(0, 200_000, 4000)])
+    t = np.cumsum(gaps).astype(np.int64) + 10**9
+    n = len(t)
+    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                rng.integers(0, 2, n))
+    cfg = PacketizerConfig(events_per_frame=1000, max_frame_ms=50.0, min_frame_events=200)
+    t_ref, img_ref = frames_from_events(ev, cfg)
+    sizes = np.diff(packet_ends(ev.t, cfg), prepend=0)
+    assert sizes.min() >= 200 and sizes.max() == 1000 and (sizes < 1000).sum() > 10
+    pk = Packetizer(cfg)
+    cuts = np.sort(rng.choice(np.arange(1, n), 200, replace=False))
+    cuts = np.concatenate([[0], cuts, [n]])
+    frames = []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        frames += pk.push(ev[a:b])
+    assert [f.t_ns for f in frames] == t_ref.tolist()
+    np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
+    assert [f.n_events for f in frames] == sizes.tolist()
+    assert pk.pending == n - int(sizes.sum())
+    # A packet closed by time (fewer than events_per_frame, more than min_frame_events) holds
+    # its window's events: its last one inside, the next packet's first one past it.
+    short = sizes < 1000
+    nxt = t[np.cumsum(sizes)[:-1]]
+    first = np.array([f.t_first_ns for f in frames])
+    closed_by_time = short[:-1] & (sizes[:-1] > 200)
+    assert np.all(nxt[closed_by_time] - first[:-1][closed_by_time] >= 50_000_000)
+    assert np.all(t[np.cumsum(sizes)[:-1] - 1][closed_by_time]
+                  - first[:-1][closed_by_time] < 50_000_000)
 
 
 def test_bad_inputs_raise_with_actionable_messages(rng: np.random.Generator) -> None:
@@ -267,3 +338,35 @@ def test_denoised_streaming_equals_batch_for_any_split(rng: np.random.Generator)
     assert 0 < len(frames) <= len(t_ref) and len(t_ref) - len(frames) <= 3
     assert [f.t_ns for f in frames] == t_ref[:len(frames)].tolist()
     np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref[:len(frames)])
+
+
+@settings(max_examples=200, deadline=None)
+@given(gaps=st.lists(st.sampled_from([0, 0, 1, 3, 50, 400, 5000]), min_size=1, max_size=300),
+       k=st.integers(1, 40), m=st.integers(1, 40), span=st.sampled_from([0, 1, 100, 1000]),
+       cuts=st.lists(st.integers(0, 300), max_size=12))
+def test_time_capped_packets_hold_for_any_stream_and_split(
+        gaps: list[int], k: int, m: int, span: int, cuts: list[int]) -> None:
+    """Every packet: at most k events; fewer only when closed by time (at least m events, or
+    just m when the window held fewer); pushes split anywhere (equal times across the split)
+    give the batch's packets."""
+    m = min(m, k)
+    t = np.cumsum(np.asarray(gaps, np.int64)) + 10**6
+    n = len(t)
+    cfg = PacketizerConfig(events_per_frame=k, min_frame_events=m, max_frame_ms=span / 1e6,
+                           sensor_width=4, sensor_height=4, downsample=1.0)
+    ends = packet_ends(t, cfg)
+    starts = ends - np.diff(ends, prepend=0)
+    for s, e in zip(starts.tolist(), ends.tolist(), strict=True):
+        assert 0 < e - s <= k
+        if e - s < k:
+            assert span > 0 and e - s >= m
+            assert t[-1] >= t[s] + span                       # its window is over
+            if e - s > m:                                     # it holds its whole window
+                assert t[e - 1] < t[s] + span <= t[e]
+    ev = EventArray.from_arrays(t, np.arange(n) % 4, np.arange(n) // 4 % 4, np.zeros(n, np.int64))
+    pk = Packetizer(cfg)
+    got = []
+    bounds = sorted({0, n, *[c for c in cuts if c < n]})
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        got += [f.n_events for f in pk.push(ev[a:b])]
+    assert got == np.diff(ends, prepend=0).tolist()
