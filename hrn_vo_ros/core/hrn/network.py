@@ -118,7 +118,6 @@ class HRN:
         """Forget the map and the states; the next non-empty frame starts a new map."""
         self.iteration = 0
         self._started = False
-        self._point = dict.fromkeys(self.factors, 0.0)          # index units, wrapped
         self._last: Estimate | None = None
         self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
@@ -126,11 +125,15 @@ class HRN:
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
         self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
         self._t_prev: int | None = None  # time of the previous frame (ns)
-        self._prev: dict[str, float] | None = None  # readout of the last valid frame
-        self._velocity: dict[str, float] | None = None   # smoothed readout change per frame
+        self._new_origin()
         self.tracker.reset()
         self._on_frac = np.zeros((self.cfg.height, self.cfg.width))  # running on-fraction
         self.hot_pixels = 0             # on pixels masked as hot in the last frame
+
+    def _new_origin(self) -> None:      # a new map: its origin, no velocity
+        self._point = dict.fromkeys(self.factors, 0.0)          # index units, wrapped
+        self._prev: dict[str, float] | None = None  # readout of the last valid frame
+        self._velocity: dict[str, float] | None = None   # smoothed readout change per frame
 
     # the tracker's figures, as the network's own (docs/model.md, section 9)
     @property
@@ -458,7 +461,8 @@ class HRN:
             eng.distinctiveness(target) if tr.psr_on else math.nan)))
         if c.tracking.relocalise and tr.search_due():
             kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
-            found = self._relocalise(S, point)
+            near = prior_point if gyro and c.imu.gate_deg > 0.0 else None
+            found = self._relocalise(S, point, near, c.imu.gate_deg)
             if found is not None:
                 point, spread, peak, sims, target = found
             elif kept is not None:      # the gyro carries the states: no unaccepted restart
@@ -480,8 +484,7 @@ class HRN:
         self._pose.restart()
         self._engine.start(canvas, self.rng)
         self._map_iteration = self.iteration
-        self._point = dict.fromkeys(self.factors, 0.0)
-        self._prev = self._velocity = None
+        self._new_origin()
         self.tracker.restart()
         return out
 
@@ -507,11 +510,14 @@ class HRN:
 
     # -- re-localisation -------------------------------------------------------------------
 
-    def _relocalise(self, S: Any, point: dict[str, float]
+    def _relocalise(self, S: Any, point: dict[str, float],
+                    near: dict[str, float] | None = None, gate_deg: float = 0.0
                     ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
                                dict[str, Real], Any] | None:
         """Global search and restarts while lost; the accepted restart's readout, or None
-        (the states then continue from the best restart)."""
+        (the states then continue from the best restart); with ``near`` (the gyro's
+        prediction) only within ``gate_deg`` (``imu.gate_deg``) of it, as any readout: the
+        gyro rules out the rest."""
         eng, tc, tr = self._engine, self.cfg.tracking, self.tracker
         search = getattr(eng, 'relocalise', None)
         if search is None:
@@ -525,7 +531,8 @@ class HRN:
             pt, spread, peak = self._readout(sims)
             target = eng.map_target(S, pt)
             ov = eng.overlap(target)
-            if tr.sharpness(peak) < tc.relock:     # a split state is no re-localisation
+            if tr.sharpness(peak) < tc.relock or (      # a split state is no re-localisation
+                    near is not None and self._innovation_deg(pt, near) > gate_deg):
                 continue
             if best is None or ov > best[0]:
                 best = (ov, {k: x.copy() for k, x in eng.state.items()},

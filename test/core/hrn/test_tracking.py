@@ -127,6 +127,46 @@ def test_relocalises_after_a_blackout_with_roll_motion(roll_deg: float) -> None:
     assert hrn.relocalisations >= 1
 
 
+@pytest.mark.parametrize('gyro_agrees', [True, False])
+def test_with_the_gyro_a_relocalisation_stays_near_its_prediction(gyro_agrees: bool) -> None:
+    """After a blackout the camera shows the scene rolled by 35 deg. A gyro that measured the
+    roll lets the track re-lock there; a gyro that says the camera did not turn rules the
+    rolled pose out (it is beyond imu.gate_deg of the prediction, as any readout would be), so
+    the estimate stays with the gyro instead of jumping to it."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    # the shipped gate and correction limit; restarts long enough to re-lock in one search
+    # (with 4 iterations this synthetic search needs several, and the gyro keeps none)
+    imu = {'enabled': True, 'gate_deg': 5.0, 'max_correction_deg_s': 5.0,
+           'max_correction_fraction': 0.2}
+    hrn = make({'imu': imu, 'focal_px': 79.6, 'tracking': {'restart_iterations': 12}})
+    poses = trajectory(150, amp_roll=0.3, period=250.0)       # roll only: gyro z = d(roll)
+    est = []
+    for i, p in enumerate(poses):
+        d = p[2] - (poses[i - 1][2] if i else 0.0)
+        est.append(hrn.step(event_frame(scene, tuple(p), rng), i * 5_000_000,
+                            gyro_delta=np.array([0.0, 0.0, d])))
+    assert est[-1].state == 'tracking' and abs(est[-1].r - poses[-1][2]) < np.deg2rad(1.0)
+    blank = np.zeros((72, 96), np.uint8)
+    for i in range(20):                                       # 100 ms without events
+        hrn.step(blank, (150 + i) * 5_000_000, gyro_delta=np.zeros(3))
+    roll = np.deg2rad(35.0)
+    target = poses[-1] + np.array([0.0, 0.0, roll, 0.0])
+    after = []
+    for i in range(60):
+        g = np.array([0.0, 0.0, roll if gyro_agrees and i == 0 else 0.0])
+        after.append(hrn.step(event_frame(scene, tuple(target), rng), (170 + i) * 5_000_000,
+                              gyro_delta=g))
+    r = np.array([e.r for e in after])
+    if gyro_agrees:
+        assert after[-1].state == 'tracking'
+        assert abs(r[-1] - target[2]) < np.deg2rad(1.0)
+    else:
+        assert 'lost' in [e.state for e in after] or 'degraded' in [e.state for e in after]
+        assert np.max(np.abs(r - poses[-1][2])) < np.deg2rad(hrn.cfg.imu.gate_deg), \
+            np.rad2deg(r - poses[-1][2]).round(1)
+
+
 def test_spiking_backend_shares_the_quality_and_state() -> None:
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
