@@ -211,6 +211,13 @@ def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]
     return np.asarray(ends, dtype=np.intp)
 
 
+def _packet_times(t: NDArray[np.int64], ends: NDArray[np.intp]
+                  ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """First, last and midpoint (rounded down) event time of the packets ending at ``ends``."""
+    first, last = t[ends - np.diff(ends, prepend=0)], t[ends - 1]
+    return first, last, first + (last - first) // 2
+
+
 class _Binner:
     """Flat pixel index lookup and packet binning shared by the stateful and batch forms."""
 
@@ -394,8 +401,7 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     if probe is not None and rate is None:      # too short to measure: no frame (as a stream)
         ends = ends[:0]
     images = b.images(pix, ends, _noisy(cfg, rate))
-    first, last = t[ends - np.diff(ends, prepend=0)], t[ends - 1]
-    return first + (last - first) // 2, images
+    return _packet_times(t, ends)[2], images
 
 
 class Packetizer:
@@ -479,9 +485,11 @@ class Packetizer:
         pix, t = self._b.pixels(ev)
         self._outside += len(ev) - len(t)
         total = self._pending + len(t)
-        timed = self.cfg.max_frame_ns > 0
-        if (total < self.cfg.events_per_frame and not timed) or waiting:
-            # (frames wait for the background rate's measurement)
+        # the fewest events that can close a packet (min_frame_events <= events_per_frame);
+        # frames also wait for the background rate's measurement
+        fewest = self.cfg.min_frame_events if self.cfg.max_frame_ns > 0 else \
+            self.cfg.events_per_frame
+        if total < fewest or waiting:
             self._pend_pix.append(pix)
             self._pend_t.append(t)
             self._pending = total
@@ -490,16 +498,14 @@ class Packetizer:
             pix = np.concatenate([*self._pend_pix, pix])
             t = np.concatenate([*self._pend_t, t])
         ends = packet_ends(t, self.cfg)
-        n = len(ends)
-        used = int(ends[-1]) if n else 0
-        sizes = np.diff(ends, prepend=0)
-        first, last = t[ends - sizes], t[ends - 1]
-        images = self._b.images(pix, ends, self.noisy) if n else None
-        mid = first + (last - first) // 2
+        used = int(ends[-1]) if len(ends) else 0
+        first, last, mid = _packet_times(t, ends)
+        images = self._b.images(pix, ends, self.noisy)
         rest = total - used
         self._pend_pix = [pix[used:].copy()] if rest else []
         self._pend_t = [t[used:].copy()] if rest else []
         self._pending = rest
+        sizes = np.diff(ends, prepend=0)
         return [EventFrame(t_ns=int(mid[i]), image=images[i], n_events=int(sizes[i]),
                            t_first_ns=int(first[i]), t_last_ns=int(last[i]))
-                for i in range(n) if images is not None]
+                for i in range(len(ends))]

@@ -462,7 +462,7 @@ class HRN:
         if c.tracking.relocalise and tr.search_due():
             kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
             near = prior_point if gyro and c.imu.gate_deg > 0.0 else None
-            found = self._relocalise(S, point, near, c.imu.gate_deg)
+            found = self._relocalise(S, point, near)
             if found is not None:
                 point, spread, peak, sims, target = found
             elif kept is not None:      # the gyro carries the states: no unaccepted restart
@@ -511,13 +511,13 @@ class HRN:
     # -- re-localisation -------------------------------------------------------------------
 
     def _relocalise(self, S: Any, point: dict[str, float],
-                    near: dict[str, float] | None = None, gate_deg: float = 0.0
+                    near: dict[str, float] | None = None
                     ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
                                dict[str, Real], Any] | None:
         """Global search and restarts while lost; the accepted restart's readout, or None
         (the states then continue from the best restart); with ``near`` (the gyro's
-        prediction) only within ``gate_deg`` (``imu.gate_deg``) of it, as any readout: the
-        gyro rules out the rest."""
+        prediction) only within ``imu.gate_deg`` of it, as any readout: the gyro rules out
+        the rest."""
         eng, tc, tr = self._engine, self.cfg.tracking, self.tracker
         search = getattr(eng, 'relocalise', None)
         if search is None:
@@ -532,7 +532,8 @@ class HRN:
             target = eng.map_target(S, pt)
             ov = eng.overlap(target)
             if tr.sharpness(peak) < tc.relock or (      # a split state is no re-localisation
-                    near is not None and self._innovation_deg(pt, near) > gate_deg):
+                    near is not None
+                    and self._innovation_deg(pt, near) > self.cfg.imu.gate_deg):
                 continue
             if best is None or ov > best[0]:
                 best = (ov, {k: x.copy() for k, x in eng.state.items()},
