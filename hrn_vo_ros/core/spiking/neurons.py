@@ -41,6 +41,7 @@ operations per layer.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -89,13 +90,70 @@ class Spikes:
         return np.where(self.g > 0, unit[self.t], 0.0)
 
 
-def phase_to_step(z: Complex, steps: int) -> Int:
-    """Spike step ``round(arg(z) T / 2 pi) mod T`` of each value.
+def phase_to_step(z: NDArray[np.complexfloating], steps: int) -> Int:
+    """Spike step ``round(arg(z) T / 2 pi) mod T`` of each value, via :func:`phase_codes`.
 
     Shapes:
         z: any; returns the same shape, int64 in ``[0, steps)``.
     """
-    return np.rint(np.angle(z) * (steps / (2.0 * np.pi))).astype(np.int64) % steps
+    return code_steps(steps).take(phase_codes(z, steps))
+
+
+def phase_codes(z: NDArray[np.complexfloating], steps: int) -> NDArray[np.uint8]:
+    """Each value's phase step as a code; ``code_steps(T)[code]`` is the step.
+
+    For ``T`` a multiple of 4 (every configured ``T`` so far) without a transcendental function:
+    the code is ``octant * K + k``, with the octant from the signs of ``x``, ``y`` and whether
+    ``|y| > |x|``, and ``k`` the number of step boundaries ``tan((j + 1/2) 2 pi / T)`` below
+    ``min(|x|, |y|) / max(|x|, |y|)`` (``K`` - 1 of them inside the first octant); the octant's
+    symmetry (``k -> T/4 - k``, ``T/2 - k``, ``-k``) maps steps to steps exactly when ``4 | T``.
+    Equal to rounding ``arctan2`` in float64 except within the input's precision of a boundary,
+    and about 5x faster than ``arctan2`` in numpy (the emulation's largest cost). 0 gets the
+    step 0. Other ``T``: the code is the step, from ``arctan2``.
+
+    Shapes:
+        z: any; returns the same shape, uint8 (``T <= 63``).
+    """
+    if steps % 4:
+        step = np.rint(np.angle(z) * (steps / (2.0 * np.pi))).astype(np.int64) % steps
+        out: NDArray[np.uint8] = step.astype(np.uint8)
+        return out
+    bounds = _octant_bounds(steps)
+    per = len(bounds) + 1
+    x, y = z.real, z.imag
+    ax, ay = np.abs(x), np.abs(y)
+    ratio = np.minimum(ax, ay)
+    with np.errstate(invalid='ignore', divide='ignore'):      # 0 / 0 at z = 0: no boundary
+        ratio /= np.maximum(ax, ay)
+    code: NDArray[np.uint8] = np.multiply(ay > ax, per, dtype=np.uint8)
+    code += np.multiply(np.signbit(x), 2 * per, dtype=np.uint8)
+    code += np.multiply(np.signbit(y), 4 * per, dtype=np.uint8)
+    for bound in bounds:
+        code += ratio > bound
+    return code
+
+
+@functools.cache
+def code_steps(steps: int) -> Int:
+    """The step of each code of :func:`phase_codes` (read-only)."""
+    if steps % 4:
+        out = np.arange(steps, dtype=np.int64)
+    else:
+        per = len(_octant_bounds(steps)) + 1
+        octant, k = np.divmod(np.arange(8 * per), per)
+        k = np.where(octant & 1, steps // 4 - k, k)          # |y| > |x|: mirrored at 45 deg
+        k = np.where(octant & 2, steps // 2 - k, k)          # x < 0: mirrored at 90 deg
+        out = np.where(octant & 4, -k, k) % steps            # y < 0: mirrored at 0
+    out.flags.writeable = False
+    return out
+
+
+@functools.cache
+def _octant_bounds(steps: int) -> tuple[float, ...]:
+    """``tan`` of the step boundaries inside the first octant, ``(j + 1/2) 2 pi / T < pi / 4``
+    (Python floats: compared in the input's precision)."""
+    half = np.arange(steps // 8 + 1) + 0.5
+    return tuple(np.tan(half[half < steps / 8] * (2.0 * np.pi / steps)).tolist())
 
 
 def payload_exponent(max_value: float, bits: int) -> int:

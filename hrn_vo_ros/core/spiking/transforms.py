@@ -36,7 +36,12 @@ import scipy.sparse as sp
 from hrn_vo_ros.core.hrn.logpolar import cart_to_lp_matrix, Geometry, lp_to_cart_matrix
 from hrn_vo_ros.core.spiking.butterfly import AxisDFT, exact_weights, WeightMap
 from hrn_vo_ros.core.spiking.config import SpikingConfig
-from hrn_vo_ros.core.spiking.neurons import payload_exponent, rotation_constants
+from hrn_vo_ros.core.spiking.neurons import (
+    code_steps,
+    payload_exponent,
+    phase_codes,
+    rotation_constants,
+)
 from hrn_vo_ros.core.spiking.synapses import LayerCounts, quantise_weights
 
 C64 = NDArray[np.complex64]
@@ -64,8 +69,8 @@ class PhasorCode:
             table = rho ** (steps - t).astype(np.float64)
         else:
             table = np.exp(2j * np.pi * t / steps)
-        self.table = table.astype(np.complex64)
-        self.scale = np.float32(steps / (2.0 * np.pi))
+        self.table = table.astype(np.complex64)                     # per step
+        self._by_code = self.table[code_steps(steps)]               # per phase code
         self.last_count = 0
         self.last_silent: NDArray[np.intp] | None = None   # flat indices of the silent neurons
 
@@ -78,12 +83,9 @@ class PhasorCode:
         if not top > 0.0:
             self.last_count = 0
             return np.zeros_like(z)
-        ang = np.arctan2(z.imag, z.real)
-        ang *= self.scale
-        np.rint(ang, out=ang)
-        t = ang.astype(np.intp)                 # the step, mod T by the gathers' wrap mode
+        code = phase_codes(z, cfg.steps_per_cycle)
         if cfg.payload_bits == 1:
-            ph = self.table.take(t, mode='wrap')
+            ph = self._by_code.take(code)
             live = mag > 0.0
             if cfg.fire_threshold > 0.0:
                 live &= mag >= cfg.fire_threshold * float(mag.mean())
@@ -93,7 +95,7 @@ class PhasorCode:
             ph *= np.where(live, np.float32(unit), np.float32(0.0))
             return ph
         e = payload_exponent(top, cfg.payload_bits)
-        ph = (self.table * np.float32(2.0 ** e)).take(t, mode='wrap')   # unit 2^e: exact
+        ph = (self._by_code * np.float32(2.0 ** e)).take(code)   # unit 2^e: exact
         silent = (mag < cfg.fire_threshold * float(mag.mean()) if cfg.fire_threshold > 0.0
                   else None)
         g = mag                                               # (in place: mag is not used again)
