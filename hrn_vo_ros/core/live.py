@@ -219,7 +219,9 @@ class LiveOdometry:
                  ('imu_rejected_frames', self.pipeline.estimator.rejected_frames),
                  ('imu_limited_frames', self.pipeline.estimator.limited_frames),
                  ('hot_pixels', self.pipeline.estimator.hot_pixels),
-                 ('distinctiveness', f'{self.pipeline.estimator.distinct:.1f}')]
+                 ('distinctiveness', f'{self.pipeline.estimator.tracker.distinct:.1f}'),
+                 ('gyro_bias_deg_s', ' '.join(
+                     f'{b:+.3f}' for b in np.degrees(self.pipeline.estimator.gyro_bias.b)))]
                 + self.composer.diagnostic_values()
                 + [('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
 

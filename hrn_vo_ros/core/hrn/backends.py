@@ -21,8 +21,10 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.gyro import GyroBias
 from hrn_vo_ros.core.hrn.logpolar import Geometry
 from hrn_vo_ros.core.hrn.network import HRN
+from hrn_vo_ros.core.hrn.tracking import Tracker
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.core.spiking.config import SpikingConfig
@@ -40,11 +42,9 @@ class ResonatorBackend(Protocol):
     rejected_frames: int      # frames rejected by the IMU innovation gate (imu.gate_deg)
     limited_frames: int       # readouts cut by the IMU correction limit (imu.max_correction_*)
     hot_pixels: int           # on pixels of the last frame masked as hot (hot_pixel_*)
-
-    @property
-    def distinct(self) -> float:
-        """Smoothed distinctiveness of the frames (NaN: not computed)."""
-        ...
+    tracker: Tracker          # quality, state and their counts (tracker.distinct: smoothed
+    #                           distinctiveness, NaN when not computed)
+    gyro_bias: GyroBias       # the online gyro bias estimate (imu.bias_memory_s)
 
     def step(self, image: NDArray[Any], t_ns: int, *,
              gyro_delta: NDArray[Any] | None = None) -> Estimate:

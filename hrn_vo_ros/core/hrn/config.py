@@ -162,6 +162,17 @@ class ImuConfig:
                                            "of the frame's gyro rotation (gyro scale and "
                                            'axis errors grow with the motion; used with '
                                            'max_correction_deg_s > 0)', lo=0.0, hi=10.0)
+    bias_memory_s: float = param(0.0, 'memory of the online gyro bias estimate (s; 0: off): '
+                                 'the gyro errors that tracking frames show are averaged with '
+                                 'this forgetting time, and the predictions subtract the '
+                                 'bias, so that the gyro alone drifts less while vision is '
+                                 'lost (core/hrn/gyro.py)', lo=0.0, hi=1.0e5)
+    bias_prior_s: float = param(3.0, 'weight of the zero-bias prior, in seconds of tracking: '
+                                'a short track cannot set a large bias', lo=0.0, hi=1.0e5)
+    bias_min_quality: float = param(0.8, 'quality a tracking frame needs to enter the gyro '
+                                    'bias estimate', lo=0.0, hi=1.0)
+    max_bias_deg_s: float = param(5.0, 'bound on each component of the estimated gyro bias, '
+                                  'deg/s', lo=0.0, hi=1.0e3)
     camera_from_imu: tuple[float, ...] = param(
         (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
         'rotation IMU axes -> camera axes (x right, y down, z forward), row-major 3x3',

@@ -17,12 +17,12 @@ Public API:
     - ``map_image()``, ``egocentric_map_image()``: the map on the canvas, (H_c, W_c) float64.
     - ``readout_axis(name) -> (K,)``: the physical value of each similarity entry.
     - ``factors`` (``('h', 'v', 'r')``, or with ``'z'``), ``iteration``, ``geometry``,
-      ``rejected_frames``, ``innovation_deg``, ``reset()``; tracking (``docs/model.md``,
-      section 9): ``state``, ``quality``, ``overlap``, ``distinct``, ``relocalisations``,
-      ``held_frames`` (poor sparse frames that kept the prediction), ``restarts`` (maps
-      started afresh by ``tracking.bootstrap_frames``), read from ``tracker``
-      (:class:`~hrn_vo_ros.core.hrn.tracking.Tracker`: the quality terms and the state
-      machine; the network keeps what acts on the engine: the hold, the gates and the
+      ``rejected_frames``, ``innovation_deg``, ``gyro_bias``
+      (:class:`~hrn_vo_ros.core.hrn.gyro.GyroBias`), ``reset()``; tracking (``docs/model.md``,
+      section 9): ``state``, ``quality``, and ``tracker``
+      (:class:`~hrn_vo_ros.core.hrn.tracking.Tracker`: the quality terms, the state machine
+      and their counts: ``overlap``, ``distinct``, ``relocalisations``, ``held_frames``,
+      ``restarts``; the network keeps what acts on the engine: the hold, the gates and the
       re-localisation), and ``hot_pixels``.
 
 Signs: binding the map with ``h0^a`` moves the image content by +a pixels, and the output
@@ -45,6 +45,7 @@ from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.hrn.dense import DenseEngine
 from hrn_vo_ros.core.hrn.engine import Engine, EngineFactory
 from hrn_vo_ros.core.hrn.fast import FastEngine
+from hrn_vo_ros.core.hrn.gyro import GyroBias, rotation_deg, rotation_of_shift, shift_of_rotation
 from hrn_vo_ros.core.hrn.logpolar import make_geometry
 from hrn_vo_ros.core.hrn.pose import ReportedPose
 from hrn_vo_ros.core.hrn.shared import (
@@ -111,6 +112,8 @@ class HRN:
         self._blur32 = (self._blur.astype(np.float32) if self._blur is not None
                         and self._engine.blur_dtype is np.float32 else None)
         self.tracker = Tracker(c.tracking)     # quality and state (core/hrn/tracking.py)
+        self.gyro_bias = GyroBias(c.imu.bias_memory_s, c.imu.bias_prior_s,
+                                  math.radians(c.imu.max_bias_deg_s))
         self._pose = ReportedPose()            # the output (core/hrn/pose.py)
         self.reset()
 
@@ -127,6 +130,7 @@ class HRN:
         self._t_prev: int | None = None  # time of the previous frame (ns)
         self._new_origin()
         self.tracker.reset()
+        self.gyro_bias.reset()
         self._on_frac = np.zeros((self.cfg.height, self.cfg.width))  # running on-fraction
         self.hot_pixels = 0             # on pixels masked as hot in the last frame
 
@@ -145,31 +149,6 @@ class HRN:
     def quality(self) -> float:
         """Quality in [0, 1] of the last valid frame."""
         return self.tracker.quality
-
-    @property
-    def overlap(self) -> float:
-        """The last frame-map overlap at the estimate."""
-        return self.tracker.overlap
-
-    @property
-    def distinct(self) -> float:
-        """Smoothed distinctiveness (peak-to-sidelobe ratio); NaN before the first frame."""
-        return self.tracker.distinct
-
-    @property
-    def relocalisations(self) -> int:
-        """Accepted re-localisations."""
-        return self.tracker.relocalisations
-
-    @property
-    def held_frames(self) -> int:
-        """Poor sparse frames whose update was undone (``tracking.hold_gain``)."""
-        return self.tracker.held_frames
-
-    @property
-    def restarts(self) -> int:
-        """Maps started afresh by ``tracking.bootstrap_frames``."""
-        return self.tracker.restarts
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -215,24 +194,29 @@ class HRN:
             point[name], spread[name], peak[name] = b.wrap(value), sd * step * b.unit, pk
         return point, spread, peak
 
-    def _imu_predict(self, gyro_delta: NDArray[Any]) -> dict[str, float]:
+    def _check_gyro(self, gyro_delta: NDArray[Any]) -> NDArray[np.float64]:
         g = np.asarray(gyro_delta, dtype=np.float64)
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise TrackingError(f'gyro_delta must be 3 finite numbers (rad), got {gyro_delta!r}')
-        f = self.cfg.focal_px
-        if f <= 0.0:
+        if self.cfg.focal_px <= 0.0:
             raise ConfigError('focal_px must be > 0 for the IMU prediction: set it to the '
                               'focal length in frame pixels (fx / downsample)')
-        rb = self._engine.books['r']
-        # Camera rotation θ (camera axes): content moves by (-f θy, +f θx) and turns by -θz.
-        dx, dy = -f * g[1], f * g[0]
-        alpha = self._point['r'] * rb.unit          # current content angle (rad)
-        ca, sa = math.cos(alpha), math.sin(alpha)
-        # Model A shifts the map before the roll: the map-frame shift is Rot(-α) d.
-        shift = {'h': ca * dx + sa * dy, 'v': -sa * dx + ca * dy, 'r': -g[2] / rb.unit}
+        return g
+
+    def _imu_predict(self, g: NDArray[np.float64]) -> dict[str, float]:
+        rb = self._engine.books['r']    # (core/hrn/gyro.py: the content angle's frame)
+        shift = shift_of_rotation(g, self.cfg.focal_px, self._point['r'] * rb.unit, rb.unit)
         for name, delta in shift.items():
             self._engine.shift(name, delta)
         return shift
+
+    def _learn_bias(self, point: dict[str, float], predicted: dict[str, float],
+                    dt_s: float) -> None:
+        """A tracking frame's innovation, as a camera rotation, into the gyro bias."""
+        unit = self._engine.books['r'].unit
+        self.gyro_bias.update(rotation_of_shift(self._innovation(point, predicted),
+                                                self.cfg.focal_px, predicted['r'] * unit, unit),
+                              dt_s)
 
     def _track_velocity(self, point: dict[str, float]) -> None:
         """Update the smoothed h/v/r change per frame (cleanup.predict_smoothing)."""
@@ -255,16 +239,16 @@ class HRN:
             self._engine.shift(name, k * d)
         return {name: k * d for name, d in self._velocity.items()}
 
+    def _innovation(self, point: dict[str, float], predicted: dict[str, float]
+                    ) -> dict[str, float]:
+        """Readout minus gyro prediction (h, v, r; index units, wrapped)."""
+        books = self._engine.books
+        return {k: books[k].wrap(point[k] - predicted[k]) for k in ('h', 'v', 'r')}
+
     def _innovation_deg(self, point: dict[str, float], predicted: dict[str, float]) -> float:
         """Largest angle between a readout and the gyro prediction (roll, pan/tilt), degrees."""
-        books = self._engine.books
-        worst = 0.0
-        for name in ('h', 'v', 'r'):
-            b = books[name]
-            d = b.wrap(point[name] - predicted[name])
-            ang = b.unit * abs(d) if name == 'r' else math.atan(abs(d) / self.cfg.focal_px)
-            worst = max(worst, ang)
-        return math.degrees(worst)
+        return rotation_deg(self._innovation(point, predicted), self.cfg.focal_px,
+                            self._engine.books['r'].unit)
 
     # -- public ----------------------------------------------------------------------------
 
@@ -300,10 +284,12 @@ class HRN:
         if first:
             eng.start(canvas, self.rng)
             self._started = True
-        predicted, held, shift = self._predict(first, gyro_delta)
-        gyro = gyro_delta is not None and not first     # the gyro predicted this frame
         dt_s = 0.0 if self._t_prev is None else max(t_ns - self._t_prev, 0) * 1e-9
         self._t_prev = t_ns
+        if gyro_delta is not None:
+            gyro_delta = self.gyro_bias.correct(self._check_gyro(gyro_delta), dt_s)
+        predicted, held, shift = self._predict(first, gyro_delta)
+        gyro = gyro_delta is not None and not first     # the gyro predicted this frame
         # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
         prior = ({k: x.copy() for k, x in eng.state.items()} if c.tracking.enabled
                  and c.tracking.hold_gain > -1.0 and not first else None)
@@ -331,6 +317,9 @@ class HRN:
                                                  and self.quality >= c.tracking.map_quality)):
             eng.update_map(S, point, c.map.mu1, c.map.mu2, target)
             updated = True
+        if predicted is not None and not rejected and self.state == 'tracking' \
+                and self.quality >= c.imu.bias_min_quality:
+            self._learn_bias(point, predicted, dt_s)
         return self._emit(t_ns, point, spread, peak, sims, updated, gyro=gyro)
 
     # -- the steps of a frame ---------------------------------------------------------------
@@ -379,8 +368,8 @@ class HRN:
         shift: dict[str, float] = {}
         if not first and gyro_delta is not None:       # the gyro, else the velocity predicts
             shift = self._imu_predict(gyro_delta)
+            predicted = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
             if c.imu.gate_deg > 0.0 or c.imu.max_correction_deg_s > 0.0:
-                predicted = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
                 held = {k: x.copy() for k, x in eng.state.items()}
         elif c.cleanup.predict_velocity > 0.0:         # no-op until two valid frames
             shift = self._predict_velocity()

@@ -124,7 +124,7 @@ def test_relocalises_after_a_blackout_with_roll_motion(roll_deg: float) -> None:
     assert last.state == 'tracking', states
     assert abs(last.r - target[2]) < max(3 * err0, np.deg2rad(1.5))
     assert abs(last.h - target[0]) < 1.5 and abs(last.v - target[1]) < 1.5
-    assert hrn.relocalisations >= 1
+    assert hrn.tracker.relocalisations >= 1
 
 
 @pytest.mark.parametrize('gyro_agrees', [True, False])
@@ -220,7 +220,7 @@ def test_hot_pixel_frames_do_not_move_the_track(hold: bool) -> None:
     roll_dev = max(abs(e.r - last[2]) for e in out)
     shift_dev = max(max(abs(e.h - last[0]), abs(e.v - last[1])) for e in out)
     assert roll_dev < np.deg2rad(2.0) and shift_dev < 1.0, (roll_dev, shift_dev)
-    assert hrn.held_frames >= 15
+    assert hrn.tracker.held_frames >= 15
     back = run(hrn, scene, np.repeat(last[None], 10, axis=0), rng, t0=170)
     assert back[-1].state == 'tracking'
     assert abs(back[-1].r - last[2]) < np.deg2rad(1.0) and abs(back[-1].h - last[0]) < 0.5
@@ -259,7 +259,7 @@ def test_a_roll_spread_over_many_poses_is_flagged() -> None:
     eng.state['r'] = mix / np.abs(mix).mean()
     out = run(hrn, scene, poses[:3], rng, t0=40)
     assert abs(out[0].r) < np.deg2rad(1.0)                # the readout is still right
-    assert hrn.overlap > 0.5 * hrn.tracker.ref                   # and so is the overlap
+    assert hrn.tracker.overlap > 0.5 * hrn.tracker.ref                   # and so is the overlap
     assert out[0].confidence['r'] < 0.35
     assert out[0].state == 'degraded' and out[0].quality < hrn.cfg.tracking.degrade
 
@@ -378,7 +378,7 @@ def test_noise_frames_are_flagged_by_their_distinctiveness() -> None:
     noisy = make()
     est = [noisy.step(f, i * 5_000_000) for i, f in enumerate(frames)]
     assert all(e.state != 'tracking' for e in est[2:12]), [e.state for e in est[:12]]
-    assert noisy.distinct < TrackingConfig().psr_floor, noisy.distinct
+    assert noisy.tracker.distinct < TrackingConfig().psr_floor, noisy.tracker.distinct
 
 
 def test_a_clean_sequence_is_distinct() -> None:
@@ -387,7 +387,7 @@ def test_a_clean_sequence_is_distinct() -> None:
     hrn = make()
     est = run(hrn, scene, clean(120), rng)
     assert all(e.state == 'tracking' for e in est)
-    assert hrn.distinct > TrackingConfig().psr_full, hrn.distinct
+    assert hrn.tracker.distinct > TrackingConfig().psr_full, hrn.tracker.distinct
 
 
 @pytest.mark.parametrize('mask', [True, False])
@@ -491,10 +491,10 @@ def test_a_map_started_on_noise_is_replaced_by_the_first_frame_with_structure(
     est += run(hrn, scene, poses, rng, t0=len(noise))
     tail = est[-60:]
     if not bootstrap:
-        assert hrn.restarts == 0
+        assert hrn.tracker.restarts == 0
         assert sum(e.state == 'tracking' for e in est[len(noise):]) < 0.1 * len(poses)
         return
-    assert hrn.restarts >= 2        # on the noise, then at the first frame of the scene
+    assert hrn.tracker.restarts >= 2        # on the noise, then at the first frame of the scene
     assert all(e.state != 'tracking' for e in est[1:len(noise) + 1])
     assert all(e.state == 'tracking' for e in tail)
     # the output is the pose relative to the scene's first frame (the new map's), at pose 0
@@ -520,7 +520,7 @@ def test_a_new_map_continues_the_output_from_the_pose_it_starts_at() -> None:
     hrn.tracker.state = 'lost'
     b.append(hrn._restart(hrn._place(frames[k]), k, {}, {}, {}, gyro=False))
     b += [hrn.step(f, i) for i, f in enumerate(frames[k + 1:], start=k + 1)]
-    assert hrn.restarts == 1
+    assert hrn.tracker.restarts == 1
     diff = np.abs(np.array([(e.h, e.v, e.r) for e in b[k + 20:]])
                   - np.array([(e.h, e.v, e.r) for e in a[k + 20:]]))
     assert np.all(np.median(diff, axis=0) < (0.25, 0.25, 0.003)), np.median(diff, axis=0)

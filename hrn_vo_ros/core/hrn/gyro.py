@@ -1,0 +1,112 @@
+"""The gyro's prediction in the HRN's coordinates, and the online estimate of the gyro's bias.
+
+Mapping (Model A, small angles; ``docs/model.md``, IMU prediction): a camera rotation
+``theta`` (rad, camera axes x right, y down, z forward) moves the image content by
+``d = (-f theta_y, +f theta_x)`` pixels and turns it by ``-theta_z``; the map-frame shift
+binds ``Rot(-alpha) d`` into ``h, v`` (``alpha`` the current content angle) and
+``-theta_z / unit_r`` into ``r``. :func:`rotation_of_shift` is the inverse: the rotation a
+difference of readouts stands for.
+
+Bias ([design]): a MEMS gyro's bias changes over minutes, so while vision tracks, the readout
+minus the gyro's prediction (the innovation) measures ``-(bias - b) dt`` plus the readout's
+noise, and :class:`GyroBias` integrates it, ``b <- b - innovation / tau``: the predictions
+become unbiased with time constant ``tau`` (divided by the fraction of the innovation a
+readout follows). The readout noise of consecutive frames largely cancels in the sum (a
+readout is absolute against the map), so the estimate is steady long before the drift it
+removes would matter: while vision is lost, the states run on ``gyro - b`` alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+
+def shift_of_rotation(theta: F64, focal_px: float, alpha: float, unit_r: float
+                      ) -> dict[str, float]:
+    """The map-frame binding (h, v in pixels, r in index units) of a camera rotation.
+
+    Shapes:
+        theta: (3,) rad.
+    """
+    dx, dy = -focal_px * float(theta[1]), focal_px * float(theta[0])
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    return {'h': ca * dx + sa * dy, 'v': -sa * dx + ca * dy, 'r': -float(theta[2]) / unit_r}
+
+
+def rotation_of_shift(d: dict[str, float], focal_px: float, alpha: float, unit_r: float
+                      ) -> F64:
+    """The camera rotation (rad, camera axes) whose binding is ``d``: inverse of
+    :func:`shift_of_rotation`.
+
+    Shapes:
+        returns (3,).
+    """
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    dx = ca * d['h'] - sa * d['v']
+    dy = sa * d['h'] + ca * d['v']
+    return np.array([dy / focal_px, -dx / focal_px, -d['r'] * unit_r])
+
+
+def rotation_deg(d: dict[str, float], focal_px: float, unit_r: float) -> float:
+    """The largest angle of a binding: roll ``|r| unit_r``, pan/tilt ``atan(|h|, |v| / f)``
+    (degrees)."""
+    return math.degrees(max(abs(d['r']) * unit_r, math.atan(abs(d['h']) / focal_px),
+                            math.atan(abs(d['v']) / focal_px)))
+
+
+class GyroBias:
+    """Running estimate of the gyro's bias from the innovations of tracked frames.
+
+    Each tracked frame's gyro error ``u = b dt - innovation`` (the innovation, readout minus
+    the prediction made with the bias ``b`` then applied, as a camera rotation) is summed,
+    ``U``, with its time ``T``, both forgotten with time constant ``memory_s``; the estimate is
+    ``U / (T + prior_s)``: a prior of zero bias weighted as ``prior_s`` seconds of tracking, so
+    a few frames cannot set a large bias. Consecutive readout errors cancel in ``U`` (a readout
+    is absolute against the map), so its noise is about twice one readout's over ``T +
+    prior_s``.
+
+    Args:
+        memory_s: Forgetting time constant (s); 0 turns the estimate off (``b`` stays 0).
+        prior_s: Weight of the zero-bias prior (s of tracking).
+        max_rad_s: Bound on each component of ``b`` (rad/s).
+    """
+
+    def __init__(self, memory_s: float, prior_s: float, max_rad_s: float) -> None:
+        self.memory_s = memory_s
+        self.prior_s = prior_s
+        self.max_rad_s = max_rad_s
+        self.reset()
+
+    def reset(self) -> None:
+        self.b = np.zeros(3)
+        self._u = np.zeros(3)
+        self._t = 0.0
+        self.updates = 0
+
+    def correct(self, gyro_delta: F64, dt_s: float) -> F64:
+        """The integrated gyro over ``dt_s`` without the estimated bias.
+
+        Shapes:
+            gyro_delta: (3,) rad; returns (3,).
+        """
+        return np.asarray(gyro_delta, np.float64) - self.b * dt_s
+
+    def update(self, innovation: F64, dt_s: float) -> None:
+        """Add one tracked frame: its innovation (readout minus prediction as a camera
+        rotation in rad, :func:`rotation_of_shift`) over its ``dt_s`` seconds.
+
+        Shapes:
+            innovation: (3,).
+        """
+        if self.memory_s <= 0.0 or dt_s <= 0.0:
+            return
+        keep = math.exp(-dt_s / self.memory_s)
+        self._u = keep * self._u + (self.b * dt_s - np.asarray(innovation, np.float64))
+        self._t = keep * self._t + dt_s
+        self.b = np.clip(self._u / (self._t + self.prior_s), -self.max_rad_s, self.max_rad_s)
+        self.updates += 1

@@ -1,0 +1,90 @@
+"""The gyro's binding in the HRN's coordinates and the online gyro-bias estimate."""
+
+from __future__ import annotations
+
+import math
+
+from hrn_synth import event_frame, random_scene, trajectory
+import numpy as np
+import pytest
+from test_hrn import FOCAL, gyro_between, make
+
+from hrn_vo_ros.core.hrn.gyro import GyroBias, rotation_deg, rotation_of_shift, shift_of_rotation
+
+
+def test_shift_of_a_rotation_by_hand() -> None:
+    # pan right (theta_y > 0): content moves left by f theta_y; tilt down: content moves down
+    assert shift_of_rotation(np.array([0.0, 0.01, 0.0]), 100.0, 0.0, 0.5) == pytest.approx(
+        {'h': -1.0, 'v': 0.0, 'r': 0.0})
+    assert shift_of_rotation(np.array([0.02, 0.0, 0.1]), 100.0, 0.0, 0.5) == pytest.approx(
+        {'h': 0.0, 'v': 2.0, 'r': -0.2})
+    # content turned by 90 deg: the image's -1 px in x is +1 px along the map's v
+    assert shift_of_rotation(np.array([0.0, 0.01, 0.0]), 100.0, math.pi / 2, 0.5) == \
+        pytest.approx({'h': 0.0, 'v': 1.0, 'r': 0.0})
+
+
+def test_rotation_of_a_shift_inverts_it() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        theta = rng.normal(0.0, 0.05, 3)
+        alpha, unit = rng.uniform(-math.pi, math.pi), rng.uniform(0.01, 0.1)
+        d = shift_of_rotation(theta, 80.0, alpha, unit)
+        np.testing.assert_allclose(rotation_of_shift(d, 80.0, alpha, unit), theta, atol=1e-12)
+
+
+def test_rotation_deg_is_the_largest_angle() -> None:
+    assert rotation_deg({'h': 1.0, 'v': -3.0, 'r': 0.0}, 3.0, 0.1) == pytest.approx(45.0)
+    assert rotation_deg({'h': 0.0, 'v': 0.0, 'r': -2.0}, 3.0, math.radians(30)) == \
+        pytest.approx(60.0)
+
+
+def test_bias_estimate_converges_in_closed_loop_and_is_bounded() -> None:
+    """A tracker whose readout moves a fraction k of the way from the prediction to the truth
+    (plus noise) and predicts the next frame from it with the corrected gyro: the estimate is
+    U / (T + prior) of the bias, k-free (the lag carries over and cancels in the sum)."""
+    rng = np.random.default_rng(1)
+    bias, dt, k, omega = np.array([0.01, -0.02, 0.03]), 0.01, 0.6, np.array([0.5, -0.3, 1.0])
+    est = GyroBias(memory_s=100.0, prior_s=2.0, max_rad_s=0.1)
+    truth, pose = np.zeros(3), np.zeros(3)
+    seen = []
+    for _ in range(3000):                                  # 30 s
+        truth = truth + omega * dt
+        pred = pose + est.correct((omega + bias) * dt, dt)
+        pose = pred + k * (truth - pred) + rng.normal(0.0, 0.003, 3)
+        est.update(pose - pred, dt)
+        seen.append(est.b.copy())
+    # T / (T + prior): 1/3 after 1 s; 0.93 after 30 s with 100 s memory (T = 25.9 s)
+    np.testing.assert_allclose(seen[99], bias / 3.0, atol=0.003)
+    np.testing.assert_allclose(est.b, 0.928 * bias, atol=0.002)
+    assert est.updates == 3000
+    np.testing.assert_allclose(est.correct(np.array([0.1, 0.1, 0.1]), 0.5),
+                               0.1 - 0.5 * est.b, atol=1e-15)
+    capped = GyroBias(memory_s=10.0, prior_s=0.0, max_rad_s=0.005)
+    for _ in range(100):
+        capped.update(-(bias - capped.b) * dt, dt)
+    np.testing.assert_allclose(capped.b, [0.005, -0.005, 0.005])
+    off = GyroBias(memory_s=0.0, prior_s=1.0, max_rad_s=0.1)
+    off.update(np.ones(3), 0.01)
+    assert off.updates == 0 and not off.b.any()
+
+
+@pytest.mark.parametrize('bias', [(0.04, -0.03, 0.05), (0.0, 0.0, 0.0)])
+def test_hrn_learns_the_gyro_bias_while_tracking(bias: tuple[float, float, float]) -> None:
+    """Synthetic frames of a known smooth motion and a gyro with a constant bias (rad/s):
+    the estimate, averaged over the last 300 of 1000 frames, is the bias (and stays near 0
+    without one: a sign error in the mapping would run it into its bound)."""
+    b = np.array(bias)
+    hrn = make({'imu': {'enabled': True, 'bias_memory_s': 100.0, 'bias_prior_s': 0.5},
+                'focal_px': FOCAL,
+                'cleanup': {'gamma': 0.6}, 'map': {'mu1': 0.99, 'mu2': 0.002}})
+    traj = trajectory(1000, amp_xy=8.0, amp_roll=0.3, period=250.0)
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    seen = []
+    for i, pose in enumerate(traj):
+        g = gyro_between(traj[i - 1], pose) + b * 0.005 if i else None
+        hrn.step(event_frame(scene, tuple(pose), rng), i * 5_000_000, gyro_delta=g)
+        seen.append(hrn.gyro_bias.b.copy())
+        assert hrn.state == 'tracking'
+    got = np.mean(seen[700:], axis=0)
+    assert np.all(np.abs(got - b) <= [0.006, 0.006, 0.015]), got
