@@ -7,13 +7,12 @@ binds ``Rot(-alpha) d`` into ``h, v`` (``alpha`` the current content angle) and
 ``-theta_z / unit_r`` into ``r``. :func:`rotation_of_shift` is the inverse: the rotation a
 difference of readouts stands for.
 
-Bias ([design]): a MEMS gyro's bias changes over minutes, so while vision tracks, the readout
-minus the gyro's prediction (the innovation) measures ``-(bias - b) dt`` plus the readout's
-noise, and :class:`GyroBias` integrates it, ``b <- b - innovation / tau``: the predictions
-become unbiased with time constant ``tau`` (divided by the fraction of the innovation a
-readout follows). The readout noise of consecutive frames largely cancels in the sum (a
-readout is absolute against the map), so the estimate is steady long before the drift it
-removes would matter: while vision is lost, the states run on ``gyro - b`` alone.
+Bias ([design]; ``imu.bias_memory_s``, off in every shipped configuration): while vision
+tracks, the readout minus the gyro's prediction (the innovation) measures the gyro's error over
+the frame, ``-(bias - b) dt``, plus the readout's error; :class:`GyroBias` averages it over the
+tracked time with a prior of zero bias, and the predictions subtract the estimate, so that the
+gyro alone drifts less while vision is lost. It is only as good as vision's motion over the
+tracked stretch (docs/model.md, section 6, and docs/results.md for what that costs).
 """
 
 from __future__ import annotations
