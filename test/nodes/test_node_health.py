@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 import math
 import time
+from types import SimpleNamespace
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -29,6 +30,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from test_nodes import packet, random_events
 
 from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.hrn.gyro import GyroBias
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.odometry.odometry import OdometryConfig, readout_to_pose, twist_between
 from hrn_vo_ros.io import ros_msgs
@@ -217,7 +219,8 @@ class Scripted:
     rejected_frames = 0
     limited_frames = 0
     hot_pixels = 0
-    distinct = float('nan')
+    tracker = SimpleNamespace(distinct=float('nan'))
+    gyro_bias = GyroBias(memory_s=0.0, prior_s=3.0, max_rad_s=0.1)
 
     def __init__(self, script: list[tuple[float, str]]) -> None:
         self.script = script
