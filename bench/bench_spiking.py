@@ -222,8 +222,10 @@ def main() -> int:
     print(f'  |d roll| {med[0]:.2f} deg (<= 1.0: {"ok" if med[0] <= 1.0 else "FAIL"})')
     print(f'  |d h| {med[1]:.2f} px, |d v| {med[2]:.2f} px (<= 0.5: '
           f'{"ok" if max(med[1], med[2]) <= 0.5 else "FAIL"})')
+    verdict = ('not evaluated: too few frames for the protocol' if np.isnan(gdiff)
+               else 'ok' if gdiff <= 0.5 else 'FAIL')
     print(f'  geodesic float {med[3]:.2f} deg, spiking {med[4]:.2f} deg, median |diff| '
-          f'{gdiff:.2f} deg (<= 0.5: {"ok" if gdiff <= 0.5 else "FAIL"})')
+          f'{gdiff:.2f} deg (<= 0.5: {verdict})')
     ff = 1.0 / np.median(np.concatenate(times_f))
     fs = 1.0 / np.median(np.concatenate(times_s))
     print(f'  frames/s (median per-frame time): float {ff:.0f}, spiking emulation {fs:.1f} '
