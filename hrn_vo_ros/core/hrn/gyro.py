@@ -81,6 +81,11 @@ class GyroBias:
         self.max_rad_s = max_rad_s
         self.reset()
 
+    @property
+    def enabled(self) -> bool:
+        """Whether the estimate runs (``memory_s > 0``)."""
+        return self.memory_s > 0.0
+
     def reset(self) -> None:
         self.b = np.zeros(3)
         self._u = np.zeros(3)
@@ -102,7 +107,7 @@ class GyroBias:
         Shapes:
             innovation: (3,).
         """
-        if self.memory_s <= 0.0 or dt_s <= 0.0:
+        if not self.enabled or dt_s <= 0.0:
             return
         keep = math.exp(-dt_s / self.memory_s)
         self._u = keep * self._u + (self.b * dt_s - np.asarray(innovation, np.float64))

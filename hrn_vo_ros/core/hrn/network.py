@@ -317,8 +317,8 @@ class HRN:
                                                  and self.quality >= c.tracking.map_quality)):
             eng.update_map(S, point, c.map.mu1, c.map.mu2, target)
             updated = True
-        if predicted is not None and not rejected and self.state == 'tracking' \
-                and self.quality >= c.imu.bias_min_quality:
+        if self.gyro_bias.enabled and predicted is not None and not rejected \
+                and self.state == 'tracking' and self.quality >= c.imu.bias_min_quality:
             self._learn_bias(point, predicted, dt_s)
         return self._emit(t_ns, point, spread, peak, sims, updated, gyro=gyro)
 

@@ -65,6 +65,7 @@ def test_bias_estimate_converges_in_closed_loop_and_is_bounded() -> None:
     np.testing.assert_allclose(capped.b, [0.005, -0.005, 0.005])
     off = GyroBias(memory_s=0.0, prior_s=1.0, max_rad_s=0.1)
     off.update(np.ones(3), 0.01)
+    assert not off.enabled and est.enabled
     assert off.updates == 0 and not off.b.any()
 
 
