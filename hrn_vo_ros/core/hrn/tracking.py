@@ -9,10 +9,10 @@ re-localise while lost) stays in :mod:`.network`, which owns the engine.
 
 Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
 ``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
-``bootstrap_due()``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
+``bootstrap_due()``, ``remap_due(t_ns)``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
 ``sparse(n_on)``, ``note_tracked(n_on)`` and the attributes ``state``, ``quality``,
 ``overlap``, ``distinct``, ``relocalisations``, ``held_frames``, ``established``,
-``restarts``.
+``restarts``, ``lost_since``.
 """
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ class Tracker:
         self._good_run = 0              # consecutive frames of quality >= recover
         self.bad_run = 0                # consecutive frames of quality < degrade
         self.lost_run = 0               # consecutive lost frames (the search's schedule)
+        self.lost_since: int | None = None  # frame time (ns) at which the track was lost
 
     # -- quality terms ----------------------------------------------------------------------
 
@@ -147,6 +148,16 @@ class Tracker:
         not caught up with yet converges within fewer frames)."""
         n = self.cfg.bootstrap_frames
         return bool(n) and not self.established and self.poor and self.bad_run >= n
+
+    def remap_due(self, t_ns: int) -> bool:
+        """Whether a lost track should start a new map: lost for ``remap_s`` (frame time)
+        without a re-localisation. Call once per frame (it keeps the time the loss began)."""
+        if self.state != 'lost':
+            self.lost_since = None
+            return False
+        if self.lost_since is None:
+            self.lost_since = t_ns
+        return self.cfg.remap_s > 0.0 and t_ns - self.lost_since >= self.cfg.remap_s * 1e9
 
     def relocked(self, q: float) -> None:
         """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""

@@ -97,3 +97,26 @@ def test_the_search_runs_on_the_first_lost_frame_and_every_nth() -> None:
         every.update(0.1)
         flags.append(every.search_due())
     assert flags == [False, True, True, True]      # degraded first, then lost: every frame
+
+
+@pytest.mark.parametrize('remap_s', [0.0, 0.5])
+def test_a_new_map_is_due_after_remap_s_lost(remap_s: float) -> None:
+    """remap_due counts frame time from the first lost frame: due on the first frame at or
+    after remap_s, never while degraded, again from scratch after a recovery; off at 0."""
+    tr = Tracker(TrackingConfig(lose_frames=2, recover_frames=1, remap_s=remap_s))
+    due = []
+    for i, q in enumerate([0.1, 0.1, 0.1, 0.1, 0.1, 0.1]):     # frames 0.2 s apart
+        tr.update(q)
+        due.append(tr.remap_due(i * 200_000_000))
+    # degraded at 0.0 s, lost from 0.2 s: 0.5 s lost at 0.7 s, so the 0.8 s frame is due
+    assert tr.lost_since == 200_000_000
+    assert due == [False] * 4 + [bool(remap_s)] * 2
+    tr.update(0.9)                                              # recovered: no loss to time
+    assert tr.state == 'tracking' and not tr.remap_due(1_200_000_000)
+    assert tr.lost_since is None
+    tr.update(0.1)
+    tr.update(0.1)                                              # lost again at 1.6 s
+    assert not tr.remap_due(1_600_000_000)
+    assert tr.remap_due(2_100_000_000) == bool(remap_s)        # exactly remap_s later
+    tr.restart()
+    assert tr.lost_since is None and tr.state == 'degraded'
