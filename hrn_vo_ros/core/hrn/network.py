@@ -310,7 +310,7 @@ class HRN:
                 S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro)
         self._point = point
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
-                                                 or self.tracker.remap_due(t_ns) and gyro):
+                                                 or (self.tracker.remap_due(t_ns) and gyro)):
             return self._restart(canvas, t_ns, spread, peak, sims, gyro=gyro)
         self._follow(point, n_on)
         updated = False
