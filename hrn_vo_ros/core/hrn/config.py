@@ -252,8 +252,9 @@ class TrackingConfig:
     remap_s: float = param(0.0, 'with the gyro, a track lost for this long (seconds of frame '
                            'time; no re-localisation found the map) starts a new map from the '
                            "current frame at the gyro's dead-reckoned pose, as the bootstrap "
-                           'does; never without the gyro (the pose across the gap is unknown); '
-                           '0: off, the anchored map is kept for good', lo=0.0, hi=3600.0)
+                           'does; never without the gyro (the pose across the gap is unknown; '
+                           'the gyro carries rotation only, so not for translation); 0: off, '
+                           'the anchored map is kept for good', lo=0.0, hi=3600.0)
     relocalise: bool = param(True, 'while lost, search the map globally over roll and shift '
                              'and restart the factors from the best candidates')
     rolls: int = param(24, 'roll candidates of the global search (evenly over the full turn)',
