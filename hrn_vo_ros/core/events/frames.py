@@ -31,13 +31,17 @@ the events that none of their 8 neighbouring sensor pixels supports within the s
 previous bin of ``denoise_ms`` (background activity, hot pixels). It holds back the newest bin,
 so frames come out up to ``denoise_ms`` later; :attr:`Packetizer.denoised` counts the drops.
 
-**Noisy sensors** (``noise_floor_hz`` > 0; :mod:`.noise`): the stream's background rate is
-measured on its first full window of ``noise_window_ms`` (events per second per sensor pixel;
-the camera starts at rest or slow), and no frame comes out before it is. At or above
-``noise_floor_hz`` every frame pixel needs one event more than ``min_events_per_pixel`` for the
-whole stream: a lone background event no longer lights a pixel, an edge's several events still
-do. The decision is frozen: frames whose threshold changed under a running map would no longer
-match it. :attr:`Packetizer.background_hz` and :attr:`Packetizer.noisy` report it.
+**Noisy sensors** (``noise_floor_hz`` > 0; :mod:`.noise`): the stream's background is measured
+on its first full window of ``noise_window_ms``: the rate of isolated events (no other event in
+their 3x3 sensor pixels within ``noise_isolation_ms``; per second and sensor pixel) and their
+share of all events. No frame comes out before it is. When the rate is at least
+``noise_floor_hz`` and the share at least ``noise_share``, every frame pixel needs one event
+more than ``min_events_per_pixel`` for the whole stream: a lone background event no longer
+lights a pixel, an edge's several events still do (a textured scene in motion makes isolated
+events too, but among many others: the share keeps it out). The decision is frozen: frames
+whose threshold changed under a running map would no longer match it.
+:attr:`Packetizer.background_hz`, :attr:`Packetizer.background_share` and
+:attr:`Packetizer.noisy` report it.
 
 Packetizing is vectorised: one ``bincount`` (or one scatter when any event lights a pixel) over
 ``packet * H * W + pixel`` for all complete packets of a batch; no per-event Python.
@@ -110,14 +114,20 @@ class PacketizerConfig:
                               'of its 8 neighbouring sensor pixels fired in the same or the '
                               'previous bin of this many ms (lone noise events and hot pixels '
                               'go; delays events by up to one bin); 0: off', lo=0.0, hi=1000.0)
-    noise_floor_hz: float = param(0.0, 'when the background rate (events per second per '
-                                  'sensor pixel in the first full window of the stream, '
-                                  'noise_window_ms) is at least this, every frame pixel needs '
-                                  'one event more than min_events_per_pixel (a noisy sensor); '
-                                  'no frame comes out before it is measured; 0: off',
-                                  lo=0.0, hi=1e6)
+    noise_floor_hz: float = param(0.0, 'when the background rate (isolated events per '
+                                  'second per sensor pixel in the first full window of the '
+                                  'stream, noise_window_ms) is at least this and their share '
+                                  'at least noise_share, every frame pixel needs one event '
+                                  'more than min_events_per_pixel (a noisy sensor); no frame '
+                                  'comes out before it is measured; 0: off', lo=0.0, hi=1e6)
+    noise_share: float = param(0.0, 'fewest isolated events per event of that window for the '
+                               'noisy-sensor threshold (a textured scene in motion also makes '
+                               'isolated events, but among many others)', lo=0.0, hi=1.0)
     noise_window_ms: float = param(250.0, 'window of the background-rate measurement, ms',
                                    lo=1.0, hi=1e6)
+    noise_isolation_ms: float = param(5.0, 'an event is isolated without another event in its '
+                                      '3x3 pixels within the same or an adjacent bin of this '
+                                      'many ms', lo=0.001, hi=1e6)
     max_frame_ms: float = param(0.0, 'a packet also closes once it spans this many ms and '
                                 'holds at least min_frame_events events (slow or sparse '
                                 'scenes still give frames at a steady rate); 0: off, every '
@@ -362,14 +372,16 @@ def background(cfg: PacketizerConfig) -> BackgroundRate | None:
     """The background-rate measurement of ``cfg`` (None when ``noise_floor_hz`` is 0)."""
     if cfg.noise_floor_hz <= 0.0:
         return None
-    return BackgroundRate(cfg.sensor_width * cfg.sensor_height,
-                          max(1, round(cfg.noise_window_ms * 1e6)))
+    window = max(1, round(cfg.noise_window_ms * 1e6))
+    return BackgroundRate(cfg.sensor_width, cfg.sensor_height, window,
+                          min(window, max(1, round(cfg.noise_isolation_ms * 1e6))))
 
 
-def _noisy(cfg: PacketizerConfig, rate_hz: float | None) -> bool:
-    """Whether a stream of measured background rate ``rate_hz`` (None: not measured, or
-    ``noise_floor_hz`` off) needs one event more per frame pixel."""
-    return rate_hz is not None and rate_hz >= cfg.noise_floor_hz
+def _noisy(cfg: PacketizerConfig, probe: BackgroundRate | None) -> bool:
+    """Whether a stream whose background ``probe`` measured (None, or not measured yet: no)
+    needs one event more per frame pixel: isolated rate and share at or above the floors."""
+    return probe is not None and probe.rate_hz is not None and probe.share is not None \
+        and probe.rate_hz >= cfg.noise_floor_hz and probe.share >= cfg.noise_share
 
 
 def frames_from_events(ev: EventArray, cfg: PacketizerConfig
@@ -392,7 +404,7 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     b = _Binner(cfg)
     b.check(ev)
     probe = background(cfg)
-    rate = None if probe is None else probe.push(ev.t)
+    rate = None if probe is None else probe.push(ev.t, ev.x, ev.y)
     f = denoiser(cfg)
     if f is not None:
         ev = EventArray.concatenate([f.push(ev), f.flush()])
@@ -400,7 +412,7 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     ends = packet_ends(t, cfg)
     if probe is not None and rate is None:      # too short to measure: no frame (as a stream)
         ends = ends[:0]
-    images = b.images(pix, ends, _noisy(cfg, rate))
+    images = b.images(pix, ends, _noisy(cfg, probe))
     return _packet_times(t, ends)[2], images
 
 
@@ -452,9 +464,15 @@ class Packetizer:
         return None if self._probe is None else self._probe.rate_hz
 
     @property
+    def background_share(self) -> float | None:
+        """Isolated events per event of the measured window (None: off, or not measured
+        yet)."""
+        return None if self._probe is None else self._probe.share
+
+    @property
     def noisy(self) -> bool:
         """Whether frame pixels need one event more (``noise_floor_hz``)."""
-        return _noisy(self.cfg, self.background_hz)
+        return _noisy(self.cfg, self._probe)
 
     def reset(self) -> None:
         """Drop pending events, the time-order memory and the background measurement."""
@@ -479,7 +497,7 @@ class Packetizer:
                    f'at {self._last_t} ns; feed batches in time order (or reset())')
             raise DatasetError(msg)
         self._last_t = int(ev.t[-1])
-        waiting = self._probe is not None and self._probe.push(ev.t) is None
+        waiting = self._probe is not None and self._probe.push(ev.t, ev.x, ev.y) is None
         if self._filter is not None:
             ev = self._filter.push(ev)
         pix, t = self._b.pixels(ev)

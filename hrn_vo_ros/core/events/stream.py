@@ -323,6 +323,8 @@ class PacketStream:
             ('events_denoised', 0 if p is None else p.denoised),
             ('background_hz', '' if p is None or p.background_hz is None
              else f'{p.background_hz:.3f}'),
+            ('background_share', '' if p is None or p.background_share is None
+             else f'{p.background_share:.3f}'),
             ('noisy_threshold', p is not None and p.noisy),
             ('frames_subscribers', frames_subscribers),
             ('sensor_size', '' if p is None else f'{p.cfg.sensor_width}x{p.cfg.sensor_height}'),

@@ -14,39 +14,97 @@ from hrn_vo_ros.errors import ConfigError
 S = 1_000_000_000
 
 
-def test_rate_of_the_first_full_window_by_hand() -> None:
-    """100 pixels, 1 s windows; the stream starts 0.5 s into window 0 (partial: not
-    measured). Window 1 holds 50 events, one of them exactly at its start (1.0 s): 50 events
-    / (1 s x 100 px) = 0.5 Hz, known once an event at or after 2.0 s arrives."""
-    probe = BackgroundRate(100, S)
-    t0 = np.array([S // 2, S // 2 + 1, S - 1], np.int64)      # window 0: 3 events, ignored
-    t1 = np.linspace(S, 2 * S - 1, 50).astype(np.int64)        # window 1: 50 events
-    assert probe.push(t0) is None
-    assert probe.push(t1) is None              # no event after window 1 yet
-    assert probe.push(np.array([2 * S], np.int64)) == pytest.approx(0.5)
-    assert probe.rate_hz == pytest.approx(0.5)
-    assert probe.push(np.arange(3 * S, 3 * S + 1000, dtype=np.int64)) == pytest.approx(0.5)
+MS = 1_000_000
+
+
+def ev_of(rows: list[tuple[int, int, int]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, x, y) arrays of ``(t_ns, x, y)`` rows, sorted by time (stable)."""
+    a = np.array(sorted(rows, key=lambda r: r[0]), np.int64).reshape(-1, 3)
+    return a[:, 0], a[:, 1], a[:, 2]
+
+
+def test_isolated_events_by_hand() -> None:
+    """10x10 pixels, 1 s windows, 100 ms bins; window 0 (partial) is ignored. Window 1:
+    a lone event (isolated); two diagonal neighbours in adjacent bins, the second exactly on a
+    bin's start (neither); one pixel twice, three bins apart (both); two events two pixels
+    apart in one bin (both); two neighbours two bins apart, one on a bin start (both); an
+    event in the window's last ns (isolated). 10 events, 8 isolated, on 100 px in 1 s."""
+    rows = [(S // 2, 5, 5), (S - 1, 5, 5), (S - 1, 6, 5),        # window 0: ignored
+            (S + 50 * MS, 5, 5),                                     # lone
+            (S + 250 * MS, 1, 1), (S + 300 * MS, 2, 2),              # bins 2, 3: neighbours
+            (S + 450 * MS, 8, 8), (S + 720 * MS, 8, 8),              # bins 4, 7: both alone
+            (S + 910 * MS, 0, 0), (S + 910 * MS, 2, 0),              # two px apart: alone
+            (S + 400 * MS, 4, 1), (S + 600 * MS, 4, 2),              # bins 4, 6: alone
+            (2 * S - 1, 9, 9)]                                       # last bin: alone
+    t, x, y = ev_of(rows)
+    probe = BackgroundRate(10, 10, S, 100 * MS)
+    assert probe.push(t, x, y) is None                 # no event after window 1 yet
+    assert probe.push(*ev_of([(2 * S, 9, 9)])) == pytest.approx(0.08)
+    assert probe.total_hz == pytest.approx(0.10) and probe.share == pytest.approx(0.8)
+    assert probe.push(*ev_of([(3 * S, 0, 0)])) == pytest.approx(0.08)      # frozen
     probe.reset()
-    assert probe.rate_hz is None
+    assert probe.rate_hz is None and probe.total_hz is None and probe.share is None
 
 
-@pytest.mark.parametrize('split', [0, 1, 2, 3, 25, 52, 53, 54])
-def test_any_batching_gives_the_same_rate(split: int) -> None:
-    """Equal timestamps on the window's edges and any cut give the same measurement."""
-    t = np.array([10, 10] + [S] * 3 + [S + 5] * 47 + [2 * S, 2 * S], np.int64)  # 47+3 in win 1
-    probe = BackgroundRate(50, S)
-    out = [probe.push(t[:split]), probe.push(t[split:])]
-    assert out[-1] == pytest.approx(50 / 50)
-    assert out[0] is None or split >= 53
+def brute_isolated(t: np.ndarray, x: np.ndarray, y: np.ndarray, start: int, w: int,
+                   b: int) -> int:
+    """Isolated events of the window [start, start + w), event against event (reference)."""
+    m = (t >= start) & (t < start + w)
+    k, xs, ys = (t[m] - start) // b, x[m], y[m]
+    near = ((np.abs(k[:, None] - k[None, :]) <= 1) & (np.abs(xs[:, None] - xs[None, :]) <= 1)
+            & (np.abs(ys[:, None] - ys[None, :]) <= 1))
+    return int(np.count_nonzero(near.sum(axis=1) == 1))
+
+
+@pytest.mark.parametrize('pieces', [1, 2, 5, 40, 300])
+def test_any_batching_gives_the_brute_force_count(rng: np.random.Generator,
+                                                  pieces: int) -> None:
+    """Random events on 12x9 px with many equal timestamps (1 ms resolution, 4 ms bins):
+    every way of cutting the stream gives the pairwise reference count."""
+    n = 600
+    t = np.sort(rng.integers(0, 300, n)) * MS
+    x, y = rng.integers(0, 12, n), rng.integers(0, 9, n)
+    w = 100 * MS                                         # window 1: [100, 200) ms
+    want = brute_isolated(t, x, y, w, w, 4 * MS)
+    count = int(np.count_nonzero((t >= w) & (t < 2 * w)))
+    assert 0 < want < count
+    probe = BackgroundRate(12, 9, w, 4 * MS)
+    cuts = np.unique(np.concatenate([[0, n], rng.integers(0, n, pieces - 1)]))
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        probe.push(t[a:b], x[a:b], y[a:b])
+    assert probe.rate_hz == pytest.approx(want * 1e9 / (w * 108))
+    assert probe.share == pytest.approx(want / count)
+
+
+def test_poisson_background_is_isolated_at_the_predicted_share(
+        rng: np.random.Generator) -> None:
+    """Background alone at 2 Hz per pixel, 100x100 px, 10 ms bins: another event in an
+    event's 3x3 x 3 cells is Poisson with mean 2 Hz x 10 ms x (cells there), so the expected
+    share is the mean over the window's cells of exp(-0.02 cells) (27 inside: 0.5827; fewer on the
+    border and in the first and last bin): 0.5896; 20 k events give it within about 0.4 %."""
+    r, n_px, w, b = 2.0, 100, S, 10 * MS
+    n = rng.poisson(r * n_px * n_px * 2.2)
+    t = np.sort(rng.integers(0, 2.2 * S, n))
+    x, y = rng.integers(0, n_px, n), rng.integers(0, n_px, n)
+    probe = BackgroundRate(n_px, n_px, w, b)
+    probe.push(t, x, y)
+    side = np.array([2] + [3] * (n_px - 2) + [2], float)             # neighbours per axis
+    bins = np.array([2] + [3] * 98 + [2], float)
+    cells = bins[:, None, None] * side[None, :, None] * side[None, None, :]
+    expect = float(np.mean(np.exp(-r * b * 1e-9 * cells)))
+    assert expect == pytest.approx(0.5896, abs=1e-4)
+    assert probe.share == pytest.approx(expect, abs=0.012)
+    assert probe.total_hz == pytest.approx(r, rel=0.03)
 
 
 def test_bad_settings_are_refused() -> None:
-    with pytest.raises(ConfigError, match='positive'):
-        BackgroundRate(0, S)
-    with pytest.raises(ConfigError, match='positive'):
-        BackgroundRate(10, 0)
+    for args in [(0, 5, S, MS), (5, 0, S, MS), (5, 5, 0, MS), (5, 5, S, 0), (5, 5, MS, S)]:
+        with pytest.raises(ConfigError, match='positive'):
+            BackgroundRate(*args)
     with pytest.raises(ConfigError):
         PacketizerConfig(noise_floor_hz=-1.0)
+    with pytest.raises(ConfigError):
+        PacketizerConfig(noise_share=1.5)
 
 
 def scene(rate_hz: float, rng: np.random.Generator) -> EventArray:
@@ -67,9 +125,45 @@ def scene(rate_hz: float, rng: np.random.Generator) -> EventArray:
                                   np.ones(len(t), np.uint8))
 
 
-def cfg(floor: float) -> PacketizerConfig:
+def busy_scene(rng: np.random.Generator) -> EventArray:
+    """The background of :func:`scene` at 20 Hz, and from 0 s on column 7 firing all its
+    20 pixels together every 0.5 ms (40 k events/s, none of them isolated)."""
+    w, h = 40, 20
+    n = rng.poisson(20.0 * w * h * 2.0)
+    t_bg = np.sort(rng.integers(0, 2 * S, n))
+    t_e = np.repeat(np.arange(0, 2 * S, 500_000), h)
+    t = np.concatenate([t_bg, t_e])
+    x = np.concatenate([rng.integers(0, w, n), np.full(len(t_e), 7)])
+    y = np.concatenate([rng.integers(0, h, n), np.tile(np.arange(h), len(t_e) // h)])
+    o = np.argsort(t, kind='stable')
+    return EventArray.from_arrays(t[o].astype(np.int64), x[o], y[o],
+                                  np.ones(len(t), np.uint8))
+
+
+def test_a_busy_scene_is_no_noisy_sensor_below_the_share(rng: np.random.Generator) -> None:
+    """The same 20 Hz background under a busy scene: its isolated rate is still about
+    19.5 Hz (above the floor of 10), but only 19.5 / (20 + 50) = 28 % of the events are
+    isolated: with noise_share 0.5 the frames are those of the switch off, with 0.2 they need
+    two events per pixel."""
+    ev = busy_scene(rng)
+    pk = Packetizer(cfg(10.0, share=0.5))
+    pk.push(ev)
+    assert pk.background_hz == pytest.approx(19.5, rel=0.05)
+    assert pk.background_share == pytest.approx(0.28, abs=0.02)
+    assert not pk.noisy
+    _, off = frames_from_events(ev, cfg(0.0))
+    _, high = frames_from_events(ev, cfg(10.0, share=0.5))
+    _, low = frames_from_events(ev, cfg(10.0, share=0.2))
+    np.testing.assert_array_equal(high, off)
+    assert low.sum() < 0.5 * off.sum()
+
+
+def cfg(floor: float, share: float = 0.0) -> PacketizerConfig:
+    """40x20 px, 400 events per frame; isolation bins of 50 us, so that of 20 Hz background
+    a share exp(-27 x 20 Hz x 50 us) = 97 % is isolated."""
     return PacketizerConfig(events_per_frame=400, sensor_width=40, sensor_height=20,
-                            downsample=1.0, noise_floor_hz=floor, noise_window_ms=250.0)
+                            downsample=1.0, noise_floor_hz=floor, noise_window_ms=250.0,
+                            noise_isolation_ms=0.05, noise_share=share)
 
 
 def test_a_noisy_stream_needs_two_events_per_pixel(rng: np.random.Generator) -> None:
@@ -113,7 +207,7 @@ def test_streaming_waits_for_the_measurement_then_equals_batch(
         frames = pk.push(ev[a:b])
         if frames:
             assert int(ev.t[b - 1]) >= S // 2        # only once the window [0.25, 0.5) s closed
-            assert pk.noisy and pk.background_hz == pytest.approx(20.0, rel=0.15)
+            assert pk.noisy and pk.background_hz == pytest.approx(19.5, rel=0.15)
         out += frames
     assert [f.t_ns for f in out] == list(t_b)
     np.testing.assert_array_equal(np.stack([f.image for f in out]), img_b)
