@@ -29,8 +29,9 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   stays below the threshold for 0.5 s; losses that never recover count in "never".
 
 ``--cache DIR`` keeps each simulated sequence's frames, ground truth and IMU there (pickles
-keyed by kind, seed and length), so that a second run, e.g. with ``--set``, skips the
-simulation (the events are kept too, so that ``--pset`` runs skip it as well); ``--set
+keyed by kind, seed, length, ``--pset`` and a hash of the config's packetizer settings), so
+that a second run, e.g. with ``--set``, skips the simulation (the events are kept too, so that
+``--pset`` runs and changed configs skip it as well); ``--set
 KEY=VALUE`` overrides resonator settings of the HRN methods (as ``hrn-vo run --set``),
 ``--pset KEY=VALUE`` packetizer settings of every method, ``--sset KEY=VALUE`` the spiking
 method's emulation settings (``SpikingConfig``). ``--trace DIR`` writes, per
@@ -54,6 +55,8 @@ for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
 import argparse  # noqa: E402
 import csv  # noqa: E402
 from dataclasses import asdict, dataclass, fields  # noqa: E402
+import hashlib  # noqa: E402
+import json  # noqa: E402
 import math  # noqa: E402
 import multiprocessing  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -64,6 +67,7 @@ import time  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+import yaml  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -157,10 +161,19 @@ def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
     return dc.packetizer, dc.resonator
 
 
+def _config_tag(kind: str) -> str:
+    """A short hash of the kind's packetizer settings in its config file: frames cached
+    under another config's settings are not reused (the events are)."""
+    with open(ROOT / 'config' / CASES[kind].config) as f:
+        section = yaml.safe_load(f)['packetizer_node']['ros__parameters']
+    text = json.dumps(section, sort_keys=True)
+    return '_p' + hashlib.sha1(text.encode()).hexdigest()[:8]
+
+
 def _frames(kind: str, seed: int, seconds: float, cache: str
             ) -> tuple[Any, Sequence, dict[str, float], np.ndarray, np.ndarray]:
     """The draw, its sequence (events cut to one), motion summary and frames; cached."""
-    tag = ''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items()))   # other frames
+    tag = ''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items())) + _config_tag(kind)
     path = Path(cache) / f'{kind}_{seed}_{seconds:g}{tag}.pkl' if cache else None
     if path is not None and path.exists():
         with open(path, 'rb') as f:
