@@ -109,6 +109,13 @@ class OdometryPipeline(Generic[E]):
             raise ConfigError('this pipeline has no packetizer: feed frames with step()')
         return [self.step(f.image, f.t_ns) for f in self.packetizer.push(events)]
 
+    def finish(self) -> list[Estimate]:
+        """End of the stream: estimate the frames the packetizer still held back
+        (:meth:`Packetizer.finish`); nothing without a packetizer."""
+        if self.packetizer is None:
+            return []
+        return [self.step(f.image, f.t_ns) for f in self.packetizer.finish()]
+
     def series(self) -> EstimateSeries:
         """The recorded readouts: ``t`` frame times (ns), ``h``, ``v``, ``r`` [, ``z``]."""
         return EstimateSeries(t=np.array(self._t, dtype=np.int64),

@@ -119,6 +119,7 @@ def run_dataset(dataset: Path, pipeline: OdometryPipeline[E], *,
         pipeline.push(batch)
         if on_events is not None:
             on_events(len(batch))
+    pipeline.finish()               # frames held for the background measurement, if any
     seconds = time.perf_counter() - start
     if not pipeline.frames:
         raise DatasetError(f'fewer events than one packet ({cfg.events_per_frame}); nothing '
@@ -348,6 +349,9 @@ def run_bag(info: BagInfo, pipeline: OdometryPipeline[E], *,
             pipeline.step(f.image, clock.now(f.t_ns))
         if on_events is not None:
             on_events(len(ev))
+    for f in packetizer.finish():   # frames held for the background measurement, if any
+        sensor_t.append(f.t_ns)
+        pipeline.step(f.image, clock.now(f.t_ns))
     seconds = time.perf_counter() - start
     if not pipeline.frames:
         raise DatasetError(f'{events} events, fewer than one packet '

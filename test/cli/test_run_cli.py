@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import dataclasses
 from pathlib import Path
 
@@ -14,7 +15,12 @@ from hrn_vo_ros.cli.main import main
 from hrn_vo_ros.core.configbase import flat_keys, to_dict
 from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.frames import (
+    EventFrame,
+    Packetizer,
+    PacketizerConfig,
+    with_calibration,
+)
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence
 from hrn_vo_ros.core.hrn.backends import make_backend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
@@ -123,16 +129,21 @@ def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0
     rows, prev = [], None
     quality: list[float] = []
     state: list[str] = []
-    for batch in iter_events(dataset):
-        for frame in packetizer.push(batch):
-            delta = None
-            if gyro is not None:
-                angle = gyro.angle_at(frame.t_ns)
-                delta, prev = (None if prev is None else angle - prev), angle
-            e = hrn.step(frame.image, frame.t_ns, gyro_delta=delta)
-            rows.append((frame.t_ns, e.h, e.v, e.r, e.z))
-            quality.append(e.quality)
-            state.append(e.state)
+
+    def frames() -> Iterator[EventFrame]:
+        for batch in iter_events(dataset):
+            yield from packetizer.push(batch)
+        yield from packetizer.finish()      # held for the background measurement (rotation)
+
+    for frame in frames():
+        delta = None
+        if gyro is not None:
+            angle = gyro.angle_at(frame.t_ns)
+            delta, prev = (None if prev is None else angle - prev), angle
+        e = hrn.step(frame.image, frame.t_ns, gyro_delta=delta)
+        rows.append((frame.t_ns, e.h, e.v, e.r, e.z))
+        quality.append(e.quality)
+        state.append(e.state)
     a = np.array(rows, dtype=np.float64)
     return (EstimateSeries(np.array([r[0] for r in rows], np.int64), a[:, 1], a[:, 2], a[:, 3],
                            a[:, 4] if rcfg.scale.enabled else None), quality, state)

@@ -34,13 +34,14 @@ so frames come out up to ``denoise_ms`` later; :attr:`Packetizer.denoised` count
 **Noisy sensors** (``noise_floor_hz`` > 0; :mod:`.noise`): the stream's background is measured
 on its first full window of ``noise_window_ms``: the rate of isolated events (no other event in
 their 3x3 sensor pixels within ``noise_isolation_ms``; per second and sensor pixel) and their
-share of all events. No frame comes out before it is. When the rate is at least
-``noise_floor_hz`` and the share at least ``noise_share``, every frame pixel needs one event
-more than ``min_events_per_pixel`` for the whole stream: a lone background event no longer
-lights a pixel, an edge's several events still do (a textured scene in motion makes isolated
-events too, but among many others: the share keeps it out). The decision is frozen: frames
-whose threshold changed under a running map would no longer match it.
-:attr:`Packetizer.background_hz`, :attr:`Packetizer.background_share` and
+share of all events. No frame comes out before it is, or before :meth:`Packetizer.finish` ends
+a stream too short to measure (which keeps the normal threshold, as the batch form does). When
+the rate is at least ``noise_floor_hz`` and the share at least ``noise_share``, every frame
+pixel needs one event more than ``min_events_per_pixel`` for the whole stream: a lone
+background event no longer lights a pixel, an edge's several events still do (a textured scene
+in motion makes isolated events too, but among many others: the share keeps it out). The
+decision is frozen: frames whose threshold changed under a running map would no longer match
+it. :attr:`Packetizer.background_hz`, :attr:`Packetizer.background_share` and
 :attr:`Packetizer.noisy` report it.
 
 Packetizing is vectorised: one ``bincount`` (or one scatter when any event lights a pixel) over
@@ -410,8 +411,9 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
         ev = EventArray.concatenate([f.push(ev), f.flush()])
     pix, t = b.pixels(ev)
     ends = packet_ends(t, cfg)
-    if probe is not None and rate is None:      # too short to measure: no frame (as a stream)
-        ends = ends[:0]
+    # a stream that ends before its background is measured keeps the normal threshold (as
+    # Packetizer.finish)
+    del rate
     images = b.images(pix, ends, _noisy(cfg, probe))
     return _packet_times(t, ends)[2], images
 
@@ -436,6 +438,7 @@ class Packetizer:
         self._outside = 0
         self._filter = denoiser(self.cfg)
         self._probe = background(self.cfg)
+        self._ended = False             # finish() was called: no more waiting for the probe
 
     @property
     def pending(self) -> int:
@@ -477,6 +480,7 @@ class Packetizer:
     def reset(self) -> None:
         """Drop pending events, the time-order memory and the background measurement."""
         self._pend_pix, self._pend_t, self._pending, self._last_t = [], [], 0, None
+        self._ended = False
         if self._filter is not None:
             self._filter.reset()
         if self._probe is not None:
@@ -497,7 +501,9 @@ class Packetizer:
                    f'at {self._last_t} ns; feed batches in time order (or reset())')
             raise DatasetError(msg)
         self._last_t = int(ev.t[-1])
-        waiting = self._probe is not None and self._probe.push(ev.t, ev.x, ev.y) is None
+        # (after finish() the probe stops: a threshold decided at the end stays)
+        waiting = not self._ended and self._probe is not None \
+            and self._probe.push(ev.t, ev.x, ev.y) is None
         if self._filter is not None:
             ev = self._filter.push(ev)
         pix, t = self._b.pixels(ev)
@@ -515,6 +521,25 @@ class Packetizer:
         if self._pending:
             pix = np.concatenate([*self._pend_pix, pix])
             t = np.concatenate([*self._pend_t, t])
+        return self._close(pix, t, total)
+
+    def finish(self) -> list[EventFrame]:
+        """End of the stream: the complete packets held back for the background measurement
+        (``noise_floor_hz``) come out, with the normal threshold when the stream ended before
+        its window was measured (too short to tell: counted as quiet). The partial packet
+        stays pending; later pushes no longer wait. Nothing when nothing is held."""
+        self._ended = True
+        fewest = self.cfg.min_frame_events if self.cfg.max_frame_ns > 0 else \
+            self.cfg.events_per_frame
+        if self._pending < fewest:
+            return []
+        return self._close(np.concatenate(self._pend_pix), np.concatenate(self._pend_t),
+                           self._pending)
+
+    def _close(self, pix: NDArray[np.int32], t: NDArray[np.int64],
+               total: int) -> list[EventFrame]:
+        """The frames of every complete packet of the pending events ``pix``, ``t``
+        (``total`` of them); the rest stays pending."""
         ends = packet_ends(t, self.cfg)
         used = int(ends[-1]) if len(ends) else 0
         first, last, mid = _packet_times(t, ends)

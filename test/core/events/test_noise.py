@@ -215,10 +215,31 @@ def test_streaming_waits_for_the_measurement_then_equals_batch(
     assert pk.background_hz is None and not pk.noisy
 
 
-def test_a_stream_too_short_to_measure_gives_no_frames(rng: np.random.Generator) -> None:
-    """Events that end inside the measured window: no frame (the threshold is unknown)."""
+def test_a_stream_too_short_to_measure_keeps_the_normal_threshold(
+        rng: np.random.Generator) -> None:
+    """Events that end inside the measured window [0.25, 0.5) s: streaming holds every frame
+    until finish(), which gives the frames of the switch off (the batch form gives them at
+    once); pushes after finish() no longer wait."""
     ev = scene(20.0, rng)
-    ev = ev[: int(np.searchsorted(ev.t, S // 2 - 1))]
-    t, img = frames_from_events(ev, cfg(10.0))
-    assert len(t) == 0 and img.shape == (0, 20, 40)
-    assert Packetizer(cfg(10.0)).push(ev) == []
+    short = ev[: int(np.searchsorted(ev.t, S // 2 - 1))]
+    t_off, off = frames_from_events(short, cfg(0.0))
+    t_b, img_b = frames_from_events(short, cfg(10.0))
+    assert len(t_off) >= 10
+    np.testing.assert_array_equal(t_b, t_off)
+    np.testing.assert_array_equal(img_b, off)
+    pk = Packetizer(cfg(10.0))
+    assert pk.push(short) == []
+    out = pk.finish()
+    assert [f.t_ns for f in out] == list(t_off) and not pk.noisy
+    np.testing.assert_array_equal(np.stack([f.image for f in out]), off)
+    assert pk.pending < 400 and pk.finish() == []
+    assert len(pk.push(ev[len(short):])) >= 10                    # no more waiting,
+    assert not pk.noisy and pk.background_hz is None               # nor a later switch
+
+
+def test_finish_is_idle_on_a_measured_stream(rng: np.random.Generator) -> None:
+    """A measured stream holds only its partial packet: finish() adds nothing."""
+    ev = scene(20.0, rng)
+    pk = Packetizer(cfg(10.0))
+    n = len(pk.push(ev))
+    assert n > 10 and pk.noisy and pk.finish() == []
