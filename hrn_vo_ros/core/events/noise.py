@@ -88,13 +88,13 @@ class BackgroundRate:
             k = (t[lo:hi] - start) // b                               # bin of each event
             edges = np.flatnonzero(np.diff(k)) + 1
             for a, e in zip(np.r_[0, edges], np.r_[edges, hi - lo], strict=True):
+                kb = int(k[a])
+                self._decide(kb - 2)        # the bins before kb are complete (time order)
                 cell = y[lo + a:lo + e].astype(np.int64) * self.width + x[lo + a:lo + e]
                 add = np.bincount(cell, minlength=self.width * self.height)
-                kb = int(k[a])
                 self._bins[kb] = self._slab(kb) + add.reshape(self.height, self.width)
-            self._decide(int(k[-1]) - 2)            # bins whose successor is complete
         if hi < len(t):                             # an event after the window: complete
-            self._decide(-(-w // b))                # every bin of the window
+            self._decide(-(-w // b))                # every bin of the window (ceil(w / b))
             px = self.width * self.height
             self.rate_hz = self._isolated * 1e9 / (w * px)
             self.total_hz = self._count * 1e9 / (w * px)
