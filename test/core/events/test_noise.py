@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
 
@@ -243,3 +245,31 @@ def test_finish_is_idle_on_a_measured_stream(rng: np.random.Generator) -> None:
     pk = Packetizer(cfg(10.0))
     n = len(pk.push(ev))
     assert n > 10 and pk.noisy and pk.finish() == []
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.data())
+def test_isolated_count_equals_the_pairwise_reference(data: st.DataObject) -> None:
+    """Any small sensor, window, bin, event set (equal timestamps, events on the window's and
+    bins' edges) and cut into pushes: the pairwise reference count."""
+    w, h = data.draw(st.integers(1, 6)), data.draw(st.integers(1, 6))
+    win = data.draw(st.integers(2, 40))
+    b = data.draw(st.integers(1, win))
+    n = data.draw(st.integers(1, 60))
+    t = np.sort(np.array(data.draw(st.lists(st.integers(0, 3 * win), min_size=n, max_size=n)),
+                         np.int64))
+    x = np.array(data.draw(st.lists(st.integers(0, w - 1), min_size=n, max_size=n)), np.int64)
+    y = np.array(data.draw(st.lists(st.integers(0, h - 1), min_size=n, max_size=n)), np.int64)
+    cuts = sorted(set(data.draw(st.lists(st.integers(0, n), max_size=6))) | {0, n})
+    probe = BackgroundRate(w, h, win, b)
+    for a, c in zip(cuts[:-1], cuts[1:], strict=True):
+        probe.push(t[a:c], x[a:c], y[a:c])
+    start = (int(t[0]) // win + 1) * win
+    if int(t[-1]) < start + win:                   # no event after the window: not measured
+        assert probe.rate_hz is None
+        return
+    want = brute_isolated(t, x, y, start, win, b)
+    count = int(np.count_nonzero((t >= start) & (t < start + win)))
+    assert probe.rate_hz == pytest.approx(want * 1e9 / (win * w * h))
+    assert probe.total_hz == pytest.approx(count * 1e9 / (win * w * h))
+    assert probe.share == pytest.approx(want / count if count else 0.0)
