@@ -405,15 +405,13 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     b = _Binner(cfg)
     b.check(ev)
     probe = background(cfg)
-    rate = None if probe is None else probe.push(ev.t, ev.x, ev.y)
+    if probe is not None:       # not measured (too short): the normal threshold, as finish()
+        probe.push(ev.t, ev.x, ev.y)
     f = denoiser(cfg)
     if f is not None:
         ev = EventArray.concatenate([f.push(ev), f.flush()])
     pix, t = b.pixels(ev)
     ends = packet_ends(t, cfg)
-    # a stream that ends before its background is measured keeps the normal threshold (as
-    # Packetizer.finish)
-    del rate
     images = b.images(pix, ends, _noisy(cfg, probe))
     return _packet_times(t, ends)[2], images
 
