@@ -37,7 +37,12 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.frames import (
+    EventFrame,
+    Packetizer,
+    PacketizerConfig,
+    with_calibration,
+)
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.pipeline import E, OdometryPipeline
@@ -341,17 +346,19 @@ def run_bag(info: BagInfo, pipeline: OdometryPipeline[E], *,
     sensor_t: list[int] = []
     events = 0
     start = time.perf_counter()
+
+    def estimate(frames: list[EventFrame]) -> None:
+        for f in frames:
+            sensor_t.append(f.t_ns)
+            pipeline.step(f.image, clock.now(f.t_ns))
+
     for stamp, ev in iter_bag_packets(info.path, info.events_topic):
         clock.packet(stamp, ev)
         events += len(ev)
-        for f in packetizer.push(ev):
-            sensor_t.append(f.t_ns)
-            pipeline.step(f.image, clock.now(f.t_ns))
+        estimate(packetizer.push(ev))
         if on_events is not None:
             on_events(len(ev))
-    for f in packetizer.finish():   # frames held for the background measurement, if any
-        sensor_t.append(f.t_ns)
-        pipeline.step(f.image, clock.now(f.t_ns))
+    estimate(packetizer.finish())   # frames held for the background measurement, if any
     seconds = time.perf_counter() - start
     if not pipeline.frames:
         raise DatasetError(f'{events} events, fewer than one packet '

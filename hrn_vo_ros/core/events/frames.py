@@ -507,11 +507,8 @@ class Packetizer:
         pix, t = self._b.pixels(ev)
         self._outside += len(ev) - len(t)
         total = self._pending + len(t)
-        # the fewest events that can close a packet (min_frame_events <= events_per_frame);
         # frames also wait for the background rate's measurement
-        fewest = self.cfg.min_frame_events if self.cfg.max_frame_ns > 0 else \
-            self.cfg.events_per_frame
-        if total < fewest or waiting:
+        if total < self._fewest or waiting:
             self._pend_pix.append(pix)
             self._pend_t.append(t)
             self._pending = total
@@ -527,12 +524,16 @@ class Packetizer:
         its window was measured (too short to tell: counted as quiet). The partial packet
         stays pending; later pushes no longer wait. Nothing when nothing is held."""
         self._ended = True
-        fewest = self.cfg.min_frame_events if self.cfg.max_frame_ns > 0 else \
-            self.cfg.events_per_frame
-        if self._pending < fewest:
+        if self._pending < self._fewest:
             return []
         return self._close(np.concatenate(self._pend_pix), np.concatenate(self._pend_t),
                            self._pending)
+
+    @property
+    def _fewest(self) -> int:
+        """The fewest events that can close a packet (min_frame_events <= events_per_frame)."""
+        return self.cfg.min_frame_events if self.cfg.max_frame_ns > 0 else \
+            self.cfg.events_per_frame
 
     def _close(self, pix: NDArray[np.int32], t: NDArray[np.int64],
                total: int) -> list[EventFrame]:
