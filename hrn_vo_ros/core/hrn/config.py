@@ -147,6 +147,9 @@ class ImuConfig:
                          'cleanup.gamma); the gyro carries the fast motion, so the states can '
                          'trust the prediction more, like a smaller Kalman gain', lo=0.0, hi=1.0,
                          read_only=True)
+    mu1: float = param(0.0, 'weight of the previous map while the IMU prediction is on (0: '
+                       'map.mu1); with the gyro the map can average over more frames',
+                       lo=0.0, hi=1.0)
     gate_deg: float = param(0.0, 'innovation gate (0: off): a frame whose readout differs from '
                             'the gyro prediction by more than this angle (roll, or pan/tilt '
                             'through focal_px) is rejected: the states keep the prediction '
@@ -316,6 +319,9 @@ class ResonatorConfig:
         if self.path == 'fast' and self.codebook.kind != 'dft':
             raise ConfigError('ResonatorConfig: path fast needs codebook.kind dft; use path '
                               'dense for random codebooks')
+        if self.imu.mu1 + self.map.mu2 > 1.0:
+            raise ConfigError(f'ResonatorConfig: imu.mu1 + map.mu2 = '
+                              f'{self.imu.mu1 + self.map.mu2} must be <= 1')
         make_geometry(self.width, self.height, self.codebook.canvas_width,
                       self.codebook.canvas_height, self.logpolar)
 

@@ -52,6 +52,7 @@ from hrn_vo_ros.core.hrn.shared import (
     centred_mod,
     Complex,
     Floats,
+    map_mu1,
     population_readout,
     Real,
     refine_exponent,
@@ -316,7 +317,7 @@ class HRN:
         updated = False
         if learn and (not c.tracking.enabled or (self.state != 'lost'
                                                  and self.quality >= c.tracking.map_quality)):
-            eng.update_map(S, point, c.map.mu1, c.map.mu2, target)
+            eng.update_map(S, point, map_mu1(c), c.map.mu2, target)
             updated = True
         if self.gyro_bias.enabled and predicted is not None and not rejected \
                 and self.state == 'tracking' and self.quality >= c.imu.bias_min_quality:

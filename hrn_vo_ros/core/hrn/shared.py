@@ -1,8 +1,8 @@
 """Pieces shared by the engines, the network and the spiking backend.
 
-The state update (:func:`state_gamma`, :func:`blend_state`), the cleanup nonlinearity p
-(:func:`cleanup_weights`), the 1-D FPE factor codebooks (:class:`FactorCodebook`,
-:func:`factor_codebooks`), the readout (:func:`normalised_similarity`,
+The state update (:func:`state_gamma`, :func:`blend_state`), the map weight
+(:func:`map_mu1`), the cleanup nonlinearity p (:func:`cleanup_weights`), the 1-D FPE factor
+codebooks (:class:`FactorCodebook`, :func:`factor_codebooks`), the readout (:func:`normalised_similarity`,
 :func:`population_readout`, :func:`refine_kernel`, :func:`refine_exponent`) and the array type
 names. The equations are in ``docs/model.md``.
 """
@@ -38,6 +38,14 @@ def state_gamma(cfg: ResonatorConfig) -> float:
     if cfg.imu.enabled and cfg.imu.gamma > 0.0:
         return cfg.imu.gamma
     return cfg.cleanup.gamma
+
+
+def map_mu1(cfg: ResonatorConfig) -> float:
+    """The map's weight of its previous value μ1 in use: ``imu.mu1`` while the IMU prediction
+    is on (if set), ``map.mu1`` otherwise."""
+    if cfg.imu.enabled and cfg.imu.mu1 > 0.0:
+        return cfg.imu.mu1
+    return cfg.map.mu1
 
 
 def blend_state(x: Spectrum, cleaned: _Arr, gamma: float) -> _Arr:

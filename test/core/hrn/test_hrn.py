@@ -14,6 +14,7 @@ from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.shared import (
     blend_state,
     cleanup_weights,
+    map_mu1,
     population_readout,
     refine_exponent,
     state_gamma,
@@ -343,6 +344,37 @@ def test_imu_gamma_replaces_cleanup_gamma_only_with_the_imu_on() -> None:
     assert state_gamma(on) == 0.3
     unset = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'enabled': True}})
     assert state_gamma(unset) == 0.9
+
+
+def test_imu_mu1_replaces_the_map_weight_only_with_the_imu_on() -> None:
+    cfg = from_dict(ResonatorConfig, {'map': {'mu1': 0.97}, 'imu': {'mu1': 0.985}})
+    assert map_mu1(cfg) == 0.97
+    on = from_dict(ResonatorConfig, {'map': {'mu1': 0.97}, 'imu': {'mu1': 0.985, 'enabled': True},
+                                     'focal_px': FOCAL})
+    assert map_mu1(on) == 0.985
+    unset = from_dict(ResonatorConfig, {'map': {'mu1': 0.97}, 'imu': {'enabled': True},
+                                        'focal_px': FOCAL})
+    assert map_mu1(unset) == 0.97
+    with pytest.raises(ConfigError, match=r'imu.mu1 \+ map.mu2'):
+        from_dict(ResonatorConfig, {'map': {'mu2': 0.1}, 'imu': {'mu1': 0.95}})
+
+
+def test_the_map_learns_with_imu_mu1_while_the_gyro_predicts() -> None:
+    """The map after a gyro-tracked run is the one map.mu1 = imu.mu1 gives, not map.mu1's."""
+    traj = trajectory(24, amp_xy=2.0)
+
+    def final_map(over: dict, imu: bool) -> np.ndarray:
+        hrn = make({'map': {'block_iterations': 4, **over.get('map', {})},
+                    'imu': {'enabled': imu, **over.get('imu', {})}, 'focal_px': FOCAL})
+        track(hrn, traj, imu=imu)
+        return hrn.map_image()
+
+    with_imu_mu1 = final_map({'map': {'mu1': 0.9}, 'imu': {'mu1': 0.6}}, imu=True)
+    np.testing.assert_array_equal(with_imu_mu1, final_map({'map': {'mu1': 0.6}}, imu=True))
+    assert np.abs(with_imu_mu1 - final_map({'map': {'mu1': 0.9}}, imu=True)).max() > 1e-3
+    # without the IMU, imu.mu1 is not used
+    np.testing.assert_array_equal(final_map({'map': {'mu1': 0.9}, 'imu': {'mu1': 0.6}}, imu=False),
+                                  final_map({'map': {'mu1': 0.9}}, imu=False))
 
 
 def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
