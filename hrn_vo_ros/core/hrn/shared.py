@@ -2,9 +2,9 @@
 
 The state update (:func:`state_gamma`, :func:`blend_state`), the map weight
 (:func:`map_mu1`), the cleanup nonlinearity p (:func:`cleanup_weights`), the 1-D FPE factor
-codebooks (:class:`FactorCodebook`, :func:`factor_codebooks`), the readout (:func:`normalised_similarity`,
-:func:`population_readout`, :func:`refine_kernel`, :func:`refine_exponent`) and the array type
-names. The equations are in ``docs/model.md``.
+codebooks (:class:`FactorCodebook`, :func:`factor_codebooks`), the readout
+(:func:`normalised_similarity`, :func:`population_readout`, :func:`refine_kernel`,
+:func:`refine_exponent`) and the array type names. The equations are in ``docs/model.md``.
 """
 
 from __future__ import annotations
