@@ -21,7 +21,11 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
 * **silent loss**: a loss during which the estimator reports ``state == 'tracking'`` for most
   of the lost samples; 'n/a' for an estimator whose ``Estimate`` has no ``state`` (the
   baseline always reports ``'tracking'``, so each of its losses is silent); sequences the
-  protocol cannot evaluate count as lost but not as silent;
+  protocol cannot evaluate count as lost but not as silent; a diagnostic line under the
+  breakdown (CSV column ``silent_tc``) counts them again with the calibration fitted only on
+  the estimates reported as ``'tracking'`` (``evaluate``'s ``calib_use``): a loss inside the
+  calibration segment makes the protocol fit the lost output (``cal_scale``, the fitted scale,
+  then lies far from 1/f) and every error of that sequence with it;
 * **late flag**: a loss whose first ``FLAG_FRAMES`` (10) frames all report ``state ==
   'tracking'`` (the estimator did not say within 10 frames that it may be wrong); 'n/a' as
   for silent losses;
@@ -85,6 +89,7 @@ from hrn_vo_ros.core.pipeline import OdometryPipeline  # noqa: E402
 from hrn_vo_ros.core.sim.family import draw, fresh_seeds, simulate_draw, tuning_seeds  # noqa: E402
 from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
+from hrn_vo_ros.errors import DatasetError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs  # noqa: E402
 
@@ -119,6 +124,9 @@ class Row:
     wall_s: float
     note: str
     draw: str
+    # (fields added later keep defaults, so that older CSVs still read)
+    cal_scale: float = math.nan   # the protocol's fitted calibration scale (rad or m per px)
+    silent_tc: int | None = None  # silent losses with the calibration on 'tracking' estimates
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -177,7 +185,7 @@ def _frames(kind: str, seed: int, seconds: float, cache: str
     path = Path(cache) / f'{kind}_{seed}_{seconds:g}{tag}.pkl' if cache else None
     if path is not None and path.exists():
         with open(path, 'rb') as f:
-            return tuple(pickle.load(f))  # type: ignore[return-value]
+            return tuple(pickle.load(f))
     d = draw(kind, seed)
     raw = Path(cache) / f'{kind}_{seed}_{seconds:g}_events.pkl' if cache else None
     if raw is not None and raw.exists():
@@ -278,6 +286,8 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         note, med, lost, lost_s, eps = '', math.inf, True, seconds, []
         silent: int | None = None
         late: int | None = None
+        silent_tc: int | None = None
+        scale = math.nan
         try:
             est, states, quality = _run(method, kind, seq, t, imgs)
             res = evaluate(seq.groundtruth, est, kind)
@@ -285,6 +295,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
             keep = s.t_s >= START_S
             t_s, err = s.t_s[keep], s.err[keep]
             med = res.metrics[METRIC[kind]]
+            scale = float(res.calibration['scale'])
             eps = losses(t_s, err, THRESHOLD[kind])
             lost = bool(eps)
             lost_s = float(sum(t_s[j] - t_s[i] for i, j, _ in eps))
@@ -298,6 +309,8 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
                 st = st_all[keep]
                 silent = sum(np.mean(st[i:j + 1] == 'tracking') > 0.5 for i, j, _ in eps)
                 late = late_flags(st, eps)
+                silent_tc = silent_tracking_calibrated(seq, est, kind, res.lag_s,
+                                                       list(states or ()), keep, st)
             if trace:
                 _trace(Path(trace) / f'{kind}_{seed}_{method}.csv', s.t_s, s.err, st_all,
                        quality[idx])
@@ -306,8 +319,29 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
                        len(eps), silent, late, reloc, time.perf_counter() - t0, note,
-                       d.summary()))
+                       d.summary(), scale, silent_tc))
     return out
+
+
+def silent_tracking_calibrated(seq: Sequence, est: EstimateSeries, kind: str, lag_s: float,
+                               states: list[str], keep: np.ndarray, st: np.ndarray
+                               ) -> int | None:
+    """Silent losses when only the estimates reported as ``'tracking'`` fit the calibration
+    (``evaluate``'s ``calib_use``; same lag, so the same samples): a lost stretch inside the
+    calibration segment makes the protocol's fit, and with it every error of the sequence,
+    meaningless (a scale of 0.1-25x the camera's), and this asks instead whether the
+    estimator's own claims agree with one calibration. None when fewer than the protocol's
+    minimum of calibration estimates report ``'tracking'`` (the estimator flagged the
+    segment: nothing to judge its later claims by)."""
+    assert seq.groundtruth is not None
+    try:
+        res = evaluate(seq.groundtruth, est, kind, lag_s=lag_s,
+                       calib_use=np.asarray(states) == 'tracking')
+    except DatasetError:
+        return None
+    t_s, err = res.series.t_s[keep], res.series.err[keep]
+    return int(sum(np.mean(st[i:j + 1] == 'tracking') > 0.5
+                   for i, j, _ in losses(t_s, err, THRESHOLD[kind])))
 
 
 def _trace(path: Path, t_s: np.ndarray, err: np.ndarray, states: np.ndarray | None,
@@ -428,6 +462,22 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
             parts.append('unevaluated ' + ' '.join(
                 f'{k} {why.count(k)}' for k in ('few', 'still', 'other')))
             lines.append(f'{kind:12s} {method:9s} ' + ', '.join(parts))
+    lines.append('silent losses, calibration fitted on the estimates reported as tracking only '
+                 '(a diagnostic; unjudged: too few of them to calibrate)')
+    for kind in kinds:
+        for method in methods:
+            rs = [r for r in rows if r.kind == kind and r.method == method
+                  and r.silent is not None]
+            if not rs and any(r.kind == kind and r.method == method for r in rows):
+                lines.append(f'{kind:12s} {method:9s} silent n/a (no evaluated sequence with '
+                             'states)')
+            if rs:
+                judged = [r for r in rs if r.silent_tc is not None]
+                lines.append(f'{kind:12s} {method:9s} silent '
+                             f'{sum(int(r.silent or 0) for r in rs)} -> '
+                             f'{sum(int(r.silent_tc or 0) for r in judged)} '
+                             f'(unjudged {len(rs) - len(judged)}: '
+                             f'{" ".join(str(r.seed) for r in rs if r.silent_tc is None) or "-"})')
     return lines
 
 
@@ -507,7 +557,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f'--rows: no such file: {", ".join(missing)} (give --csv files of earlier '
                   'runs)', file=sys.stderr)
             return 2
-        rows = [r for path in args.rows for r in read_rows(path)]
+        rows: list[Row] = [r for path in args.rows for r in read_rows(path)]
         kinds = [k for k in KINDS if any(r.kind == k for r in rows)]
         methods = [m for m in METHODS if any(r.method == m for r in rows)]
         for line in table(rows, kinds, methods) + [''] + breakdown(rows, kinds, methods):
@@ -534,7 +584,7 @@ def main(argv: list[str] | None = None) -> int:
           f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs',
           flush=True)
     t0 = time.perf_counter()
-    rows: list[Row] = []
+    rows = []
     ctx = multiprocessing.get_context('spawn')
     with ctx.Pool(args.jobs, _init, (over, p_over, s_over)) as pool:
         for out in pool.imap_unordered(job, tasks):

@@ -14,7 +14,10 @@ diagnostic) zeroes the roll on the first S seconds of estimates instead of the p
 ``Ry(pan) Rx(tilt) Rz(roll)``). When the CSV has a ``state`` column (``hrn-vo run``
 writes one), the table also gives the time spent in each tracking state (a frame counts until
 the next frame) and the median error of the evaluated samples per state (the JSON gets a
-``states`` entry), and the plot shades the states.
+``states`` entry), and the plot shades the states. ``--calib-states tracking`` (a diagnostic,
+not the protocol; needs that column) fits the calibration on the estimates in the given states
+only: when the track was lost inside the calibration segment, the protocol's fit (and so every
+error) describes the lost output, and this shows what the tracked part alone gives.
 """
 
 from __future__ import annotations
@@ -64,6 +67,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help='zero the roll on the estimates of the first S seconds (default 0.1: '
                         'the protocol; longer only as a diagnostic of how much the headline '
                         'depends on the first few event packets)')
+    p.add_argument('--calib-states', nargs='+', choices=STATES, default=None, metavar='STATE',
+                   help='fit the calibration on the estimates in these states only (e.g. '
+                        'tracking; needs the CSV state column; a diagnostic, not the protocol)')
     p.add_argument('--plot', type=Path, default=None, metavar='FILE',
                    help='write a trajectory plot (PNG; the format follows the suffix); an '
                         'existing folder gets trajectory.png inside it (the path is printed)')
@@ -136,8 +142,14 @@ def run(args: argparse.Namespace) -> int:
     est = ef.series
     if not 0 <= args.lag_scan <= 500:
         raise ConfigError(f'--lag-scan {args.lag_scan}: give 0 (off) to 500 ms')
+    use = None
+    if args.calib_states:
+        if ef.state is None:
+            raise ConfigError(f'--calib-states: {args.estimate} has no state column (hrn-vo '
+                              'run writes one); drop the option for this file')
+        use = np.isin(np.asarray(ef.state), args.calib_states)
     res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag,
-                   convention=args.convention, roll_zero_s=args.roll_zero)
+                   convention=args.convention, roll_zero_s=args.roll_zero, calib_use=use)
     out = res.to_dict()
     states_text = ''
     if ef.state is not None:
@@ -149,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         offsets_ms = np.arange(-args.lag_scan, args.lag_scan + 1)
         _, curves = lag_scan(gt, est, args.kind, offsets_ms * 1e-3, calib=args.calib,
                              lag_s=res.lag_s, convention=args.convention,
-                             roll_zero_s=args.roll_zero)
+                             roll_zero_s=args.roll_zero, calib_use=use)
         metric = TARGETS[args.kind][0]
         values = curves[metric]
         best = int(np.argmin(values))

@@ -61,9 +61,11 @@ CASES = {
                                                '--sset', 'precision=float',
                                                '--csv', '{work}/r.csv'),
                        ('1 sequences in', 'tracked  time ok', 'rotation     hrn',
-                        'background noise', ' Hz ', 'unevaluated few'),
+                        'background noise', ' Hz ', 'unevaluated few',
+                        'reported as tracking only', 'hrn       silent '),
                        then=('--rows', '{work}/r.csv', '--plot', '{work}/r.png'),
-                       then_expect=('tracked  time ok', 'rotation     hrn', 'plot ->')),
+                       then_expect=('tracked  time ok', 'rotation     hrn', 'plot ->',
+                                    'hrn       silent ')),
     # two 2.5 s loops of the demo bag through the real node processes
     'soak': Case('bench_soak.py', ('--smoke', '--work', '{work}'),
                  ('RSS summary (MB)', 'from warm-up', 'single pass (offline',

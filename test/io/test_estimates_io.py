@@ -161,6 +161,35 @@ def test_evaluate_states_json_is_strict_when_a_state_never_occurs(
     assert states['tracking']['median_error'] < 0.1
 
 
+def test_evaluate_calibration_on_tracking_states(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """An output held still (and flagged lost) over 4-8 s of the calibration segment skews the
+    protocol's fit; ``--calib-states tracking`` fits on the rest and is exact again (80 px per
+    rad: scale 1/80); without a state column the option is refused."""
+    ds, est = _dataset(tmp_path)
+    series = read_estimates(est)
+    ts = series.t * 1e-9
+    held = (ts > 4.0) & (ts < 8.0)
+    h, v = series.h.copy(), series.v.copy()
+    h[held], v[held] = h[held][0], v[held][0]
+    state = np.where(held, 'lost', 'tracking').tolist()
+    write_estimates(est, EstimateSeries(series.t, h, v, series.r),
+                    quality=np.where(held, 0.0, 1.0), state=state)
+    base = ['evaluate', str(ds), str(est), '--kind', 'rotation', '--json']
+    assert main(base) == 0
+    plain = json.loads(capsys.readouterr().out.strip())
+    assert abs(plain['calibration']['scale'] * 80.0 - 1.0) > 0.05
+    assert main([*base, '--calib-states', 'tracking']) == 0
+    fixed = json.loads(capsys.readouterr().out.strip())
+    assert fixed['calibration']['scale'] == pytest.approx(1 / 80.0, rel=2e-3)
+    assert fixed['metrics']['median_angle_deg'] < 0.1 < plain['metrics']['median_angle_deg']
+    bare = tmp_path / 'bare.csv'
+    write_estimates(bare, series)
+    assert main(['evaluate', str(ds), str(bare), '--kind', 'rotation',
+                 '--calib-states', 'tracking']) == 2
+    assert 'no state column' in capsys.readouterr().err
+
+
 def test_evaluate_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     ds, est = _dataset(tmp_path)
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '-2']) == 2

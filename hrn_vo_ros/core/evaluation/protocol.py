@@ -4,9 +4,10 @@ Public API (defined in the modules named, importable from here)::
 
     EstimateSeries(t, h, v, r, z=None)   # raw readouts: t ns, h/v map px, r rad, z log scale
     evaluate(gt, est, kind, *, calib='last10', lag_s=None, max_lag_s=0.5,
-             convention='swing-twist', roll_zero_s=0.1) -> EvalResult
+             convention='swing-twist', roll_zero_s=0.1, calib_use=None) -> EvalResult
     lag_scan(gt, est, kind, offsets_s, *, calib='last10', lag_s=None,
-             convention='swing-twist', roll_zero_s=0.1) -> (lag_s, {metric: [..]})
+             convention='swing-twist', roll_zero_s=0.1, calib_use=None)
+        -> (lag_s, {metric: [..]})
     umeyama(src, dst, *, with_scale=True, allow_reflection=False) -> (s, R, t)  # alignment
     estimate_lag(t_est, sig_est, t_gt, sig_gt, *, rate_hz=400, max_lag_s=0.5)  # lag
     relative_position_errors(p_gt, R_gt, p_est, R_est, lengths)               # metrics
@@ -132,7 +133,8 @@ __all__ = [
 
 def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'last10',
              lag_s: float | None = None, max_lag_s: float = 0.5,
-             convention: str = 'swing-twist', roll_zero_s: float = 0.1) -> EvalResult:
+             convention: str = 'swing-twist', roll_zero_s: float = 0.1,
+             calib_use: NDArray[np.bool_] | None = None) -> EvalResult:
     """Evaluate a raw estimate against the ground truth with the paper's protocol.
 
     Args:
@@ -147,6 +149,11 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
             (:mod:`~hrn_vo_ros.core.evaluation.samples`).
         roll_zero_s: The roll is zeroed on the estimates of the first ``roll_zero_s`` seconds
             (0.1: the protocol; longer only as a diagnostic).
+        calib_use: One flag per estimate: only flagged estimates of the calibration segment
+            fit the calibration (None: all, the protocol). A diagnostic, not the protocol:
+            flagging the estimates the estimator reported as ``tracking`` asks whether its
+            claims agree with one calibration when its lost output would distort the
+            protocol's fit.
 
     Returns:
         The metrics, calibration, lag, counts, warnings and aligned series.
@@ -172,6 +179,8 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
     # 3. split by ground-truth line order, calibration segment and evaluated part
     split = float(g.t[int(TRAIN_FRACTION * len(g.t))])
     calib_mask, test, cal_name = _segments(kind, calib, t, float(g.t[0]), split, warnings)
+    if calib_use is not None:
+        calib_mask, cal_name = _restrict(calib_mask, cal_name, calib_use, inside)
     cal_info: dict[str, float | bool | str] = {'roll_offset_rad': samples.roll_offset,
                                                'roll_zero_s': roll_zero_s,
                                                'convention': convention, 'segment': cal_name}
@@ -190,7 +199,8 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
 def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
              calib: str = 'last10', lag_s: float | None = None,
              max_lag_s: float = 0.5, convention: str = 'swing-twist',
-             roll_zero_s: float = 0.1) -> tuple[float, dict[str, list[float]]]:
+             roll_zero_s: float = 0.1, calib_use: NDArray[np.bool_] | None = None
+             ) -> tuple[float, dict[str, list[float]]]:
     """Every metric with the time alignment moved by each offset (a diagnostic, not the
     protocol): how steeply the errors depend on the lag, and which lag each metric prefers.
 
@@ -199,7 +209,8 @@ def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
     away from offset 0.
 
     Args:
-        gt, est, kind, calib, max_lag_s, convention, roll_zero_s: as for :func:`evaluate`.
+        gt, est, kind, calib, max_lag_s, convention, roll_zero_s, calib_use: as for
+            :func:`evaluate`.
         offsets_s: Offsets added to the lag, seconds (+ = the estimate lags more).
         lag_s: The lag the offsets are added to (None: estimated as :func:`evaluate` does).
 
@@ -213,11 +224,12 @@ def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
     if offsets.size == 0 or not np.all(np.isfinite(offsets)):
         raise ConfigError('lag_scan needs at least one finite offset (seconds)')
     base = (evaluate(gt, est, kind, calib=calib, max_lag_s=max_lag_s, convention=convention,
-                     roll_zero_s=roll_zero_s).lag_s if lag_s is None else float(lag_s))
+                     roll_zero_s=roll_zero_s, calib_use=calib_use).lag_s
+            if lag_s is None else float(lag_s))
     curves: dict[str, list[float]] = {}
     for d in offsets:
         res = evaluate(gt, est, kind, calib=calib, lag_s=base + float(d),
-                       convention=convention, roll_zero_s=roll_zero_s)
+                       convention=convention, roll_zero_s=roll_zero_s, calib_use=calib_use)
         for name, value in res.metrics.items():
             curves.setdefault(name, []).append(float(value))
     return base, curves
@@ -340,6 +352,27 @@ def _roll_warnings(kind: str, roll_corr: float, warnings: list[str]) -> None:
                         " the estimate's roll sign looks flipped")
     elif kind != 'translation' and roll_corr < 0.5:
         warnings.append(f'the roll correlates poorly with the ground truth (r = {roll_corr:.2f})')
+
+
+def _restrict(calib_mask: NDArray[np.bool_], cal_name: str, use: NDArray[np.bool_],
+              inside: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], str]:
+    """The calibration mask keeping only the estimates ``use`` flags (``evaluate``'s
+    ``calib_use``; ``inside`` selects the samples among the estimates).
+
+    Raises:
+        DatasetError: when ``use`` does not have one flag per estimate, or fewer than
+            :data:`MIN_SAMPLES` flagged estimates remain in the segment.
+    """
+    use = np.asarray(use)
+    if use.dtype != np.bool_ or use.shape != inside.shape:
+        raise DatasetError(f'calib_use needs one boolean per estimate ({inside.size}); got '
+                           f'{use.dtype} of shape {use.shape}')
+    mask = calib_mask & use[inside]
+    n = int(mask.sum())
+    if n < MIN_SAMPLES:
+        raise DatasetError(f'the calibration segment ({cal_name}) holds {n} flagged estimates; '
+                           f'need at least {MIN_SAMPLES}')
+    return mask, f'{cal_name}, flagged estimates only'
 
 
 def _segments(kind: str, calib: str, t: F64, t_start: float, split: float,

@@ -120,6 +120,41 @@ def test_known_similarity_is_recovered() -> None:
     assert res.metrics['median_angle_deg'] < 0.01
 
 
+def test_calibration_on_flagged_estimates_ignores_a_held_stretch() -> None:
+    """An output held still over the first half of the calibration segment (a lost track)
+    pulls the protocol's fitted scale off 1/60 and every later error up; fitted on the other
+    estimates only (``calib_use``), the calibration is exact again and so are the errors."""
+    gt, est = _rotation_case()
+    cal = evaluate(gt, est, 'rotation').series.calib
+    idx = np.flatnonzero(cal)
+    held = np.zeros(len(est), bool)
+    held[idx[0]:idx[len(idx) // 2]] = True
+    h, v = est.h.copy(), est.v.copy()
+    h[held], v[held] = h[idx[0]], v[idx[0]]
+    est = EstimateSeries(est.t, h, v, est.r)
+    lag = 0.0
+    plain = evaluate(gt, est, 'rotation', lag_s=lag)
+    assert abs(plain.calibration['scale'] * 60.0 - 1.0) > 0.05
+    assert plain.metrics['median_angle_deg'] > 0.5
+    fixed = evaluate(gt, est, 'rotation', lag_s=lag, calib_use=~held)
+    assert fixed.calibration['scale'] == pytest.approx(1 / 60.0, rel=1e-3)
+    assert fixed.metrics['median_angle_deg'] < 0.01
+    assert 'flagged' in str(fixed.calibration['segment'])
+    assert np.array_equal(fixed.series.calib, cal & ~held)
+
+
+def test_calibration_flags_are_checked() -> None:
+    gt, est = _rotation_case()
+    with pytest.raises(DatasetError, match='one boolean per estimate'):
+        evaluate(gt, est, 'rotation', calib_use=np.ones(len(est) - 1, bool))
+    with pytest.raises(DatasetError, match='one boolean per estimate'):
+        evaluate(gt, est, 'rotation', calib_use=np.ones(len(est)))
+    few = np.zeros(len(est), bool)
+    few[np.flatnonzero(evaluate(gt, est, 'rotation').series.calib)[:19]] = True
+    with pytest.raises(DatasetError, match='holds 19 flagged estimates'):
+        evaluate(gt, est, 'rotation', calib_use=few)
+
+
 def test_lag_is_found_and_removed() -> None:
     gt, est = _rotation_case(lag=0.12)
     res = evaluate(gt, est, 'rotation')
