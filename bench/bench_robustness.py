@@ -19,13 +19,13 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
 * **median error**: the protocol's metric on its evaluated part (median geodesic angle or
   median position error); the table gives the median and p90 over sequences and the worst;
 * **silent loss**: a loss during which the estimator reports ``state == 'tracking'`` for most
-  of the lost samples; 'n/a' for an estimator whose ``Estimate`` has no ``state`` (the
-  baseline always reports ``'tracking'``, so each of its losses is silent); sequences the
-  protocol cannot evaluate count as lost but not as silent; a diagnostic line under the
-  breakdown (CSV column ``silent_tc``) counts them again with the calibration fitted only on
-  the estimates reported as ``'tracking'`` (``evaluate``'s ``calib_use``): a loss inside the
-  calibration segment makes the protocol fit the lost output (``cal_scale``, the fitted scale,
-  then lies far from 1/f) and every error of that sequence with it;
+  of the lost samples; 'n/a' for an estimator whose ``Estimate`` has no ``state`` (the baseline
+  always reports ``'tracking'``, so each of its losses is silent); sequences the protocol
+  cannot evaluate count as lost but not as silent; a diagnostic line under the breakdown (CSV
+  columns ``silent_tc``, ``late_tc``) counts them and the late flags again with the calibration
+  fitted only on the estimates reported as ``'tracking'`` (``evaluate``'s ``calib_use``): a
+  loss inside the calibration segment makes the protocol fit the lost output (``cal_scale``,
+  the fitted scale, then lies far from 1/f) and every error of that sequence with it;
 * **late flag**: a loss whose first ``FLAG_FRAMES`` (10) frames all report ``state ==
   'tracking'`` (the estimator did not say within 10 frames that it may be wrong); 'n/a' as
   for silent losses;
@@ -127,6 +127,7 @@ class Row:
     # (fields added later keep defaults, so that older CSVs still read)
     cal_scale: float = math.nan   # the protocol's fitted calibration scale (rad or m per px)
     silent_tc: int | None = None  # silent losses with the calibration on 'tracking' estimates
+    late_tc: int | None = None    # late flags, the same way
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -287,6 +288,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         silent: int | None = None
         late: int | None = None
         silent_tc: int | None = None
+        late_tc: int | None = None
         scale = math.nan
         try:
             est, states, quality = _run(method, kind, seq, t, imgs)
@@ -309,7 +311,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
                 st = st_all[keep]
                 silent = sum(np.mean(st[i:j + 1] == 'tracking') > 0.5 for i, j, _ in eps)
                 late = late_flags(st, eps)
-                silent_tc = silent_tracking_calibrated(seq, est, kind, res.lag_s,
+                silent_tc, late_tc = silent_tracking_calibrated(seq, est, kind, res.lag_s,
                                                        list(states or ()), keep, st)
             if trace:
                 _trace(Path(trace) / f'{kind}_{seed}_{method}.csv', s.t_s, s.err, st_all,
@@ -319,29 +321,30 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
                        len(eps), silent, late, reloc, time.perf_counter() - t0, note,
-                       d.summary(), scale, silent_tc))
+                       d.summary(), scale, silent_tc, late_tc))
     return out
 
 
 def silent_tracking_calibrated(seq: Sequence, est: EstimateSeries, kind: str, lag_s: float,
                                states: list[str], keep: np.ndarray, st: np.ndarray
-                               ) -> int | None:
-    """Silent losses when only the estimates reported as ``'tracking'`` fit the calibration
-    (``evaluate``'s ``calib_use``; same lag, so the same samples): a lost stretch inside the
-    calibration segment makes the protocol's fit, and with it every error of the sequence,
-    meaningless (a scale of 0.1-25x the camera's), and this asks instead whether the
+                               ) -> tuple[int | None, int | None]:
+    """Silent losses and late flags when only the estimates reported as ``'tracking'`` fit the
+    calibration (``evaluate``'s ``calib_use``; same lag, so the same samples): a lost stretch
+    inside the calibration segment makes the protocol's fit, and with it every error of the
+    sequence, meaningless (a scale of 0.1-25x the camera's), and this asks instead whether the
     estimator's own claims agree with one calibration. None when fewer than the protocol's
-    minimum of calibration estimates report ``'tracking'`` (the estimator flagged the
-    segment: nothing to judge its later claims by)."""
+    minimum of calibration estimates report ``'tracking'`` (the estimator flagged the segment:
+    nothing to judge its later claims by), for both."""
     assert seq.groundtruth is not None
     try:
         res = evaluate(seq.groundtruth, est, kind, lag_s=lag_s,
                        calib_use=np.asarray(states) == 'tracking')
     except DatasetError:
-        return None
+        return None, None
     t_s, err = res.series.t_s[keep], res.series.err[keep]
-    return int(sum(np.mean(st[i:j + 1] == 'tracking') > 0.5
-                   for i, j, _ in losses(t_s, err, THRESHOLD[kind])))
+    eps = losses(t_s, err, THRESHOLD[kind])
+    return (int(sum(np.mean(st[i:j + 1] == 'tracking') > 0.5 for i, j, _ in eps)),
+            late_flags(st, eps))
 
 
 def _trace(path: Path, t_s: np.ndarray, err: np.ndarray, states: np.ndarray | None,
@@ -462,8 +465,8 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
             parts.append('unevaluated ' + ' '.join(
                 f'{k} {why.count(k)}' for k in ('few', 'still', 'other')))
             lines.append(f'{kind:12s} {method:9s} ' + ', '.join(parts))
-    lines.append('silent losses, calibration fitted on the estimates reported as tracking only '
-                 '(a diagnostic; unjudged: too few of them to calibrate)')
+    lines.append('silent losses and late flags, calibration fitted on the estimates reported as '
+                 'tracking only (a diagnostic; unjudged: too few of them to calibrate)')
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method
@@ -475,7 +478,9 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                 judged = [r for r in rs if r.silent_tc is not None]
                 lines.append(f'{kind:12s} {method:9s} silent '
                              f'{sum(int(r.silent or 0) for r in rs)} -> '
-                             f'{sum(int(r.silent_tc or 0) for r in judged)} '
+                             f'{sum(int(r.silent_tc or 0) for r in judged)}, late '
+                             f'{sum(int(r.late or 0) for r in rs)} -> '
+                             f'{sum(int(r.late_tc or 0) for r in judged)} '
                              f'(unjudged {len(rs) - len(judged)}: '
                              f'{" ".join(str(r.seed) for r in rs if r.silent_tc is None) or "-"})')
     return lines

@@ -66,13 +66,17 @@ CASES = {
                        then=('--rows', '{work}/r.csv', '--plot', '{work}/r.png'),
                        then_expect=('tracked  time ok', 'rotation     hrn', 'plot ->',
                                     'hrn       silent ')),
+    # one fresh draw, 7 s, its events removed over the first 10-degree turn from 3 s
+    'blackout': Case('bench_blackout.py', ('--smoke', '--jobs', '1', '--csv', '{work}.csv'),
+                     ('1 rotation draws', 'events removed', 're-localised:', 'median fr',
+                      'hrn_imu ', 'rows ->')),
     # two 2.5 s loops of the demo bag through the real node processes
     'soak': Case('bench_soak.py', ('--smoke', '--work', '{work}'),
                  ('RSS summary (MB)', 'from warm-up', 'single pass (offline',
                   'per-loop accuracy', 'loop   2:', 'targets: RSS growth', 'soak done'),
                  timeout=240.0),
 }
-SLOW = {'accuracy', 'latency', 'robustness', 'soak'}
+SLOW = {'accuracy', 'blackout', 'latency', 'robustness', 'soak'}
 ROS = {'latency', 'soak'}
 
 
