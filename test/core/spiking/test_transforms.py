@@ -173,7 +173,8 @@ def test_spiking_transforms_error_is_the_phase_grid_and_payloads() -> None:
 
 
 def test_counts_follow_the_spikes() -> None:
-    tf = SparseTransforms(GEOM, SpikingConfig())
+    cfg = SpikingConfig()
+    tf = SparseTransforms(GEOM, cfg)
     S = tf.frame(frame_canvas(2))
     tf.reset_counts()
     tf.reverse(S)
@@ -181,7 +182,7 @@ def test_counts_follow_the_spikes() -> None:
     stages = c["Λ': fft_y stages"]
     assert 0 < stages.spikes_in <= 4 * GEOM.n_cart
     assert stages.spikes_in <= stages.synops <= 2 * 4 * stages.spikes_in
-    assert stages.neuron_updates == 4 * GEOM.n_cart * 32
+    assert stages.neuron_updates == 4 * GEOM.n_cart * cfg.steps_per_cycle
     full = sum(row[3] for row in tf.layers() if row[0].startswith("Λ': fft_y"))
     assert stages.synops <= full
 
@@ -238,7 +239,7 @@ def test_sparse_network_fits_one_loihi2_chip_within_the_synops_target() -> None:
         b.step(event_frame(scene, (0.5 * i, 0.0, 0.0, 0.0), rng), i * 5_000_000)
     acc = b.account_summary()
     assert 1e5 < acc['synops'] <= SYNOPS_TARGET, acc
-    assert acc['cores'] == res.cores and acc['steps'] == res.depth * 32
+    assert acc['cores'] == res.cores and acc['steps'] == res.depth * b.spiking.steps_per_cycle
     assert acc['energy_uJ'] > 0 and acc['energy_idle_uJ'] > 0 and acc['time_us'] > 0
 
 
