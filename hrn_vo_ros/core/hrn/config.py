@@ -272,6 +272,13 @@ class TrackingConfig:
                               'themselves)', lo=1, hi=1000)
     relock: float = param(0.6, 'quality a restart must reach to accept the re-localisation',
                           lo=0.0, hi=1.0)
+    gap_intervals: float = param(10.0, 'a frame that comes more than this many times the '
+                                 'running mean interval of tracked frames after the previous '
+                                 'one follows a gap (no events: a lens cap, a dark room, a '
+                                 'stalled driver) across which the camera may have moved: '
+                                 'from it, poor frames search the map as lost ones do, without '
+                                 'waiting lose_frames, and a search that is not accepted leaves '
+                                 'the states as they were (0: off)', lo=0.0, hi=1e6)
 
     def __post_init__(self) -> None:
         validate(self)

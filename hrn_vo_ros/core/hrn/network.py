@@ -289,6 +289,8 @@ class HRN:
         self._t_prev = t_ns
         if gyro_delta is not None:
             gyro_delta = self.gyro_bias.correct(self._check_gyro(gyro_delta), dt_s)
+        if c.tracking.enabled and not first:
+            self.tracker.after_gap(dt_s)
         predicted, held, shift = self._predict(first, gyro_delta)
         gyro = gyro_delta is not None and not first     # the gyro predicted this frame
         # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
@@ -313,7 +315,7 @@ class HRN:
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
                                                  or (self.tracker.remap_due(t_ns) and gyro)):
             return self._restart(canvas, t_ns, spread, peak, sims, gyro=gyro)
-        self._follow(point, n_on)
+        self._follow(point, n_on, dt_s)
         updated = False
         if learn and (not c.tracking.enabled or (self.state != 'lost'
                                                  and self.quality >= c.tracking.map_quality)):
@@ -451,13 +453,18 @@ class HRN:
         tr.update(min(q, tr.sharpness(peak), tr.distinct_term(
             eng.distinctiveness(target) if tr.psr_on else math.nan)))
         if c.tracking.relocalise and tr.search_due():
-            kept = {k: x.copy() for k, x in eng.state.items()} if gyro else None
+            # a search that is not accepted leaves the states alone when the gyro carries them
+            # or when a gap, not a loss, armed it (the states may still hold the pose)
+            gap, q_frame = tr.gap_search, tr.quality
+            kept = {k: x.copy() for k, x in eng.state.items()} if gyro or gap else None
             near = prior_point if gyro and c.imu.gate_deg > 0.0 else None
             found = self._relocalise(S, point, near)
             if found is not None:
                 point, spread, peak, sims, target = found
-            elif kept is not None:      # the gyro carries the states: no unaccepted restart
+            elif kept is not None:      # no unaccepted restart: the states as they were
                 eng.state.update(kept)
+                if gap:                 # (and the frame's own quality, not the restart's)
+                    tr.quality = q_frame
         if gyro and c.tracking.gyro_poor and prior is not None and tr.poor:
             # a poor frame's readout is no measurement: the states keep the gyro's prediction
             point, peak, sims = self._keep_prior(
@@ -487,12 +494,13 @@ class HRN:
         sims = self._engine.similarities()
         return point, {k: float(np.max(x)) for k, x in sims.items()}, sims
 
-    def _follow(self, point: dict[str, float], n_on: int) -> None:
-        """Book-keeping of tracked frames: the on-pixel density and the velocity (gated)."""
+    def _follow(self, point: dict[str, float], n_on: int, dt_s: float) -> None:
+        """Book-keeping of tracked frames: the on-pixel density and frame interval, and the
+        velocity (gated)."""
         c = self.cfg
         tracking = self.state == 'tracking'
-        if tracking:        # running mean of the tracked frames' on-pixel counts
-            self.tracker.note_tracked(n_on)
+        if tracking:        # running means of the tracked frames' on-pixel counts, intervals
+            self.tracker.note_tracked(n_on, dt_s)
         if c.cleanup.predict_velocity > 0.0:
             if tracking:
                 self._track_velocity(point)

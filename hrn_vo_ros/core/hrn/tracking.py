@@ -10,9 +10,9 @@ re-localise while lost) stays in :mod:`.network`, which owns the engine.
 Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
 ``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
 ``bootstrap_due()``, ``remap_due(t_ns)``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
-``sparse(n_on)``, ``note_tracked(n_on)`` and the attributes ``state``, ``quality``,
-``overlap``, ``distinct``, ``relocalisations``, ``held_frames``, ``established``,
-``restarts``, ``lost_since``.
+``sparse(n_on)``, ``after_gap(dt_s)``, ``gap_search``, ``note_tracked(n_on, dt_s)`` and the
+attributes ``state``, ``quality``, ``overlap``, ``distinct``, ``relocalisations``,
+``held_frames``, ``established``, ``restarts``, ``lost_since``, ``interval``, ``gaps``.
 """
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ class Tracker:
         self.held_frames = 0            # poor sparse frames whose update was undone
         self.established = False        # a frame after the map's first one reached tracking
         self.restarts = 0               # maps started afresh (bootstrap_due)
+        self.interval: float | None = None  # running mean interval (s) of tracked frames
+        self.gaps = 0                   # frames that followed a gap (after_gap)
         self._new_map('tracking')
 
     def restart(self) -> None:
@@ -59,6 +61,7 @@ class Tracker:
         self.bad_run = 0                # consecutive frames of quality < degrade
         self.lost_run = 0               # consecutive lost frames (the search's schedule)
         self.lost_since: int | None = None  # frame time (ns) at which the track was lost
+        self._gap = False               # a gap armed the search of poor degraded frames
 
     # -- quality terms ----------------------------------------------------------------------
 
@@ -136,11 +139,35 @@ class Tracker:
             self.ref += tc.ref_rate * (self.overlap - self.ref)
         self.lost_run = self.lost_run + 1 if self.state == 'lost' else 0
         self.established = self.established or self.state == 'tracking'
+        if self.state != 'degraded':    # tracking again, or lost: the lost schedule rules
+            self._gap = False
 
     def search_due(self) -> bool:
-        """Whether a lost frame runs the global search: the first lost frame and every
-        ``search_every``-th after it."""
-        return self.state == 'lost' and (self.lost_run - 1) % self.cfg.search_every == 0
+        """Whether this frame runs the global search: the first lost frame and every
+        ``search_every``-th after it; after a gap (:meth:`after_gap`) also the first poor
+        degraded frame and every ``search_every``-th poor one after it."""
+        every = self.cfg.search_every
+        if self.state == 'lost':
+            return (self.lost_run - 1) % every == 0
+        return self._gap and self.poor and (self.bad_run - 1) % every == 0
+
+    @property
+    def gap_search(self) -> bool:
+        """A search now would be one armed by a gap (the track is not lost): one that is not
+        accepted must leave the states alone, they may still hold the pose."""
+        return self._gap and self.state != 'lost'
+
+    def after_gap(self, dt_s: float) -> bool:
+        """Whether a frame ``dt_s`` seconds after the previous one follows a gap: more than
+        ``gap_intervals`` times the running mean interval of tracked frames (never before two
+        tracked frames set it). A gap arms the search of poor degraded frames until the
+        track is tracking or lost again."""
+        n, iv = self.cfg.gap_intervals, self.interval
+        if not n or iv is None or not dt_s > n * iv:
+            return False
+        self._gap = True
+        self.gaps += 1
+        return True
 
     def bootstrap_due(self) -> bool:
         """Whether the map should start afresh from the current frame: it has never been
@@ -172,7 +199,12 @@ class Tracker:
         mean of tracked frames; never before the first tracked frame)."""
         return self.density is not None and n_on < self.cfg.hold_density * self.density
 
-    def note_tracked(self, n_on: int) -> None:
-        """A tracked frame's on-pixel count into the running mean (rate ``ref_rate``)."""
+    def note_tracked(self, n_on: int, dt_s: float = 0.0) -> None:
+        """A tracked frame's on-pixel count, and its interval ``dt_s`` since the previous
+        frame (0: unknown), into their running means (rate ``ref_rate``)."""
+        a = self.cfg.ref_rate
         d = self.density
-        self.density = float(n_on) if d is None else d + self.cfg.ref_rate * (n_on - d)
+        self.density = float(n_on) if d is None else d + a * (n_on - d)
+        if dt_s > 0.0:
+            iv = self.interval
+            self.interval = dt_s if iv is None else iv + a * (dt_s - iv)

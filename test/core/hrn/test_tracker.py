@@ -99,6 +99,42 @@ def test_the_search_runs_on_the_first_lost_frame_and_every_nth() -> None:
     assert flags == [False, True, True, True]      # degraded first, then lost: every frame
 
 
+@pytest.mark.parametrize('gap_intervals', [0.0, 10.0])
+def test_a_gap_arms_the_search_of_poor_degraded_frames(gap_intervals: float) -> None:
+    """The running interval of tracked frames (rate 0.5: 1/64 s, then 1/64 + 0.5 (3/64 -
+    1/64) = 1/32 s, exact in binary); a frame more than 10 x 1/32 s later follows a gap, and
+    from it poor degraded frames search on the lost schedule (the first, then every 4th)
+    until the track is tracking again; off at 0."""
+    tr = Tracker(TrackingConfig(ref_rate=0.5, lose_frames=25, search_every=4,
+                                recover_frames=1, gap_intervals=gap_intervals))
+    assert not tr.after_gap(5.0)                   # no interval yet: no gap
+    tr.note_tracked(100, 1 / 64)
+    tr.note_tracked(100, 3 / 64)
+    tr.note_tracked(100, 0.0)                      # unknown interval: not counted
+    assert tr.interval == 1 / 32
+    assert not tr.after_gap(0.3125)                # exactly 10 intervals: no gap
+    assert tr.after_gap(0.3126) == bool(gap_intervals)
+    assert tr.gaps == (1 if gap_intervals else 0)
+    due = []
+    for _ in range(6):
+        tr.update(0.1)                             # poor: degraded, not lost (25 frames)
+        due.append(tr.search_due())
+    on = bool(gap_intervals)
+    assert tr.state == 'degraded' and tr.gap_search == on
+    assert due == [on, False, False, False, on, False]
+    tr.update(0.9)                                 # tracking again: disarmed
+    tr.update(0.1)
+    assert tr.state == 'degraded' and not tr.search_due() and not tr.gap_search
+
+
+def test_a_gap_while_tracking_well_searches_nothing() -> None:
+    tr = Tracker(TrackingConfig(ref_rate=0.5, gap_intervals=10.0))
+    tr.note_tracked(100, 0.01)
+    assert tr.after_gap(1.0)
+    tr.update(0.8)                                 # the track holds across the gap
+    assert tr.state == 'tracking' and not tr.search_due() and not tr.gap_search
+
+
 @pytest.mark.parametrize('remap_s', [0.0, 0.5])
 def test_a_new_map_is_due_after_remap_s_lost(remap_s: float) -> None:
     """remap_due counts frame time from the first lost frame: due on the first frame at or

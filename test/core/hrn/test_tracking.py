@@ -127,6 +127,50 @@ def test_relocalises_after_a_blackout_with_roll_motion(roll_deg: float) -> None:
     assert hrn.tracker.relocalisations >= 1
 
 
+@pytest.mark.parametrize('gap', [False, True])
+def test_after_a_gap_the_search_starts_without_waiting_for_lost(gap: bool) -> None:
+    """The blackout of the test above (100 ms without events, then the scene rolled by
+    35 deg): with tracking.gap_intervals the first frame after the gap is 21 frame intervals
+    late, and its poor frames search at once; without it the search waits until the track is
+    lost (lose_frames 25 poor frames)."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'tracking': {'gap_intervals': 10.0 if gap else 0.0}})
+    poses = clean(150)
+    run(hrn, scene, poses, rng)
+    assert hrn.tracker.interval == pytest.approx(0.005)
+    blank = np.zeros((72, 96), np.uint8)
+    for i in range(20):                                   # 100 ms without events
+        hrn.step(blank, (150 + i) * 5_000_000)
+    target = poses[-1] + np.array([4.0, -3.0, np.deg2rad(35.0), 0.0])
+    after = run(hrn, scene, np.repeat(target[None], 50, axis=0), rng, t0=170)
+    near = [abs(e.r - target[2]) < np.deg2rad(3.0) and abs(e.h - target[0]) < 1.5
+            for e in after]
+    first = near.index(True) if any(near) else len(after)
+    assert hrn.tracker.gaps == int(gap)
+    if gap:
+        assert first <= 5, first
+        assert 'lost' not in [e.state for e in after[:first + 1]]
+    else:
+        assert first >= hrn.cfg.tracking.lose_frames - 1, first    # the 25th poor frame
+    assert after[-1].state == 'tracking' and near[-1]
+
+
+def test_a_pause_across_a_gap_keeps_the_pose() -> None:
+    """A gap without motion (the camera stood still; no events): the frames after it match
+    the map where the track left it, and the gap search (armed, never needed) moves nothing."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'tracking': {'gap_intervals': 10.0}})
+    poses = clean(150)
+    est = run(hrn, scene, poses, rng)
+    after = run(hrn, scene, np.repeat(poses[-1][None], 30, axis=0), rng, t0=250)
+    assert hrn.tracker.gaps == 1
+    assert all(e.state == 'tracking' for e in after), [e.state for e in after]
+    assert max(abs(e.r - est[-1].r) for e in after) < np.deg2rad(1.0)
+    assert hrn.tracker.relocalisations == 0
+
+
 @pytest.mark.parametrize('gyro_agrees', [True, False])
 def test_with_the_gyro_a_relocalisation_stays_near_its_prediction(gyro_agrees: bool) -> None:
     """After a blackout the camera shows the scene rolled by 35 deg. A gyro that measured the
