@@ -118,18 +118,29 @@ def phase_codes(z: NDArray[np.complexfloating], steps: int) -> NDArray[np.uint8]
         step = np.rint(np.angle(z) * (steps / (2.0 * np.pi))).astype(np.int64) % steps
         out: NDArray[np.uint8] = step.astype(np.uint8)
         return out
+    z = np.asarray(z)
+    if z.ndim == 0:                      # (the in-place steps below need arrays)
+        return phase_codes(z.reshape(1), steps).reshape(())
     bounds = _octant_bounds(steps)
     per = len(bounds) + 1
     x, y = z.real, z.imag
     ax, ay = np.abs(x), np.abs(y)
-    ratio = np.minimum(ax, ay)
+    hi = np.maximum(ax, ay)
+    # (booleans viewed as uint8 and in-place arithmetic: no casting passes)
+    code: NDArray[np.uint8] = np.greater(ay, ax).view(np.uint8)
+    ratio = np.minimum(ax, ay, out=ax)
     with np.errstate(invalid='ignore', divide='ignore'):      # 0 / 0 at z = 0: no boundary
-        ratio /= np.maximum(ax, ay)
-    code: NDArray[np.uint8] = np.multiply(ay > ax, per, dtype=np.uint8)
-    code += np.multiply(np.signbit(x), 2 * per, dtype=np.uint8)
-    code += np.multiply(np.signbit(y), 4 * per, dtype=np.uint8)
+        ratio /= hi
+    code *= np.uint8(per)
+    sign = np.signbit(x)
+    bits = sign.view(np.uint8)
+    bits *= np.uint8(2 * per)
+    code += bits
+    np.signbit(y, out=sign)
+    bits *= np.uint8(4 * per)
+    code += bits
     for bound in bounds:
-        code += ratio > bound
+        code += np.greater(ratio, bound, out=sign).view(np.uint8)
     return code
 
 
