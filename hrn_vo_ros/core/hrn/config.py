@@ -272,6 +272,11 @@ class TrackingConfig:
                               'themselves)', lo=1, hi=1000)
     relock: float = param(0.6, 'quality a restart must reach to accept the re-localisation',
                           lo=0.0, hi=1.0)
+    relock_iterations: int = param(4, 'resonator iterations of each frame after an accepted '
+                                   're-localisation until the track is tracking again, when '
+                                   'more than cleanup.iterations_per_frame: the re-located '
+                                   'track has no velocity prediction yet and must converge '
+                                   'within each frame (0: iterations_per_frame)', lo=0, hi=100)
     gap_intervals: float = param(10.0, 'a frame that comes more than this many times the '
                                  'running mean interval of tracked frames after the previous '
                                  'one follows a gap (no events: a lens cap, a dark room, a '

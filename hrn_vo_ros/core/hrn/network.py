@@ -383,7 +383,10 @@ class HRN:
                                          dict[str, float]]:
         """The frame's resonator iterations and their readout: (sims, point, spread, peak)."""
         c, eng = self.cfg, self._engine
-        for _ in range(c.cleanup.iterations_per_frame):
+        n = c.cleanup.iterations_per_frame
+        if c.tracking.enabled and self.tracker.settling:
+            n = max(n, c.tracking.relock_iterations)
+        for _ in range(n):
             eng.iterate(S)
             self.iteration += 1
         sims = eng.similarities()

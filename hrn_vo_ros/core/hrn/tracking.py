@@ -62,6 +62,7 @@ class Tracker:
         self.lost_run = 0               # consecutive lost frames (the search's schedule)
         self.lost_since: int | None = None  # frame time (ns) at which the track was lost
         self._gap = False               # a gap armed the search of poor degraded frames
+        self.settling = False           # degraded since an accepted re-localisation
 
     # -- quality terms ----------------------------------------------------------------------
 
@@ -140,7 +141,7 @@ class Tracker:
         self.lost_run = self.lost_run + 1 if self.state == 'lost' else 0
         self.established = self.established or self.state == 'tracking'
         if self.state != 'degraded':    # tracking again, or lost: the lost schedule rules
-            self._gap = False
+            self._gap = self.settling = False
 
     def search_due(self) -> bool:
         """Whether this frame runs the global search: the first lost frame and every
@@ -190,6 +191,7 @@ class Tracker:
         """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""
         self.quality, self.state = q, 'degraded'
         self._good_run, self.bad_run, self.lost_run = 1, 0, 0
+        self.settling = True
         self.relocalisations += 1
 
     # -- on-pixel density -------------------------------------------------------------------

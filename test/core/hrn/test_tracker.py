@@ -156,3 +156,19 @@ def test_a_new_map_is_due_after_remap_s_lost(remap_s: float) -> None:
     assert tr.remap_due(2_100_000_000) == bool(remap_s)        # exactly remap_s later
     tr.restart()
     assert tr.lost_since is None and tr.state == 'degraded'
+
+
+def test_settling_lasts_from_a_relocalisation_until_tracking_or_lost() -> None:
+    tr = Tracker(TrackingConfig(lose_frames=2, recover_frames=2))
+    assert not tr.settling
+    tr.relocked(0.7)                               # degraded, one good frame counted
+    assert tr.settling and tr.state == 'degraded'
+    tr.update(0.3)                                 # a poor frame: still settling
+    assert tr.settling
+    tr.update(0.9)
+    tr.update(0.9)                                 # two good frames: tracking
+    assert tr.state == 'tracking' and not tr.settling
+    tr.relocked(0.7)
+    tr.update(0.1)
+    tr.update(0.1)                                 # lost again: not settling
+    assert tr.state == 'lost' and not tr.settling

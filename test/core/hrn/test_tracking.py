@@ -156,6 +156,32 @@ def test_after_a_gap_the_search_starts_without_waiting_for_lost(gap: bool) -> No
     assert after[-1].state == 'tracking' and near[-1]
 
 
+@pytest.mark.parametrize('extra', [0, 5])
+def test_frames_after_a_relocalisation_run_relock_iterations(extra: int) -> None:
+    """Iterations per frame: iterations_per_frame (2), and relock_iterations on the frames
+    after an accepted re-localisation until the track is tracking again (0: no change)."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'tracking': {'relock_iterations': extra}})
+    run(hrn, scene, clean(150), rng)
+    blank = np.zeros((72, 96), np.uint8)
+    for i in range(20):                                   # 100 ms without events
+        hrn.step(blank, (150 + i) * 5_000_000)
+    target = clean(150)[-1] + np.array([4.0, -3.0, np.deg2rad(35.0), 0.0])
+    counts, settling, relocks = [], [], []
+    for i in range(30):
+        before, settle = hrn.iteration, hrn.tracker.settling
+        hrn.step(event_frame(scene, tuple(target), rng), (170 + i) * 5_000_000)
+        counts.append(hrn.iteration - before)
+        settling.append(settle)
+        relocks.append(hrn.tracker.relocalisations)
+    assert relocks[-1] >= 1 and any(settling) and hrn.tracker.state == 'tracking'
+    assert not hrn.tracker.settling
+    assert counts == [max(2, extra) if s else 2 for s in settling], (counts, settling)
+    first = relocks.index(1)
+    assert settling[first + 1] and not any(settling[:first + 1])
+
+
 def test_a_pause_across_a_gap_keeps_the_pose() -> None:
     """A gap without motion (the camera stood still; no events): the frames after it match
     the map where the track left it, and the gap search (armed, never needed) moves nothing."""
