@@ -220,6 +220,8 @@ class LiveOdometry:
                  ('imu_limited_frames', self.pipeline.estimator.limited_frames),
                  ('hot_pixels', self.pipeline.estimator.hot_pixels),
                  ('distinctiveness', f'{self.pipeline.estimator.tracker.distinct:.1f}'),
+                 ('relocalisations', self.pipeline.estimator.tracker.relocalisations),
+                 ('gaps', self.pipeline.estimator.tracker.gaps),
                  ('gyro_bias_deg_s', ' '.join(
                      f'{b:+.3f}' for b in np.degrees(self.pipeline.estimator.gyro_bias.b)))]
                 + self.composer.diagnostic_values()

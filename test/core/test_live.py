@@ -27,7 +27,7 @@ class Scripted:
     rejected_frames = 0
     limited_frames = 0
     hot_pixels = 3
-    tracker = SimpleNamespace(distinct=12.54)
+    tracker = SimpleNamespace(distinct=12.54, relocalisations=4, gaps=7)
     gyro_bias = SimpleNamespace(b=np.radians([0.5, -0.25, 0.0]))
 
     def __init__(self, fail_at: int = -1) -> None:
@@ -167,6 +167,7 @@ def test_diagnostic_values_keys() -> None:
     assert values['pending_frames'] == 0 and values['imu_rejected_frames'] == 0
     assert values['imu_limited_frames'] == 0
     assert values['hot_pixels'] == 3 and values['distinctiveness'] == '12.5'
+    assert values['relocalisations'] == 4 and values['gaps'] == 7
     assert values['gyro_bias_deg_s'] == '+0.500 -0.250 +0.000'
     assert values['quality'] == '1.000' and values['clock_resets'] == 0
     assert list(values)[0] == 'frame_rate_hz'

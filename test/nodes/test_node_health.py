@@ -219,7 +219,7 @@ class Scripted:
     rejected_frames = 0
     limited_frames = 0
     hot_pixels = 0
-    tracker = SimpleNamespace(distinct=float('nan'))
+    tracker = SimpleNamespace(distinct=float('nan'), relocalisations=0, gaps=0)
     gyro_bias = GyroBias(memory_s=0.0, prior_s=3.0, max_rad_s=0.1)
 
     def __init__(self, script: list[tuple[float, str]]) -> None:

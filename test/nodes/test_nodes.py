@@ -162,6 +162,7 @@ def test_malformed_frames_are_counted_and_survived(graph: Graph) -> None:
                       and len(graph.odoms) == 2)
     d = graph.diags['resonator_node']
     assert (d['bad_decode'], d['bad_size'], d['bad_time_backwards']) == ('1', '1', '1')
+    assert (d['relocalisations'], d['gaps']) == ('0', '0')     # the real tracker's counts
 
 
 def test_imu_frames_wait_for_gyro_and_nan_imu_is_rejected() -> None:
