@@ -205,8 +205,11 @@ class Tracker:
         """A tracked frame's on-pixel count, and its interval ``dt_s`` since the previous
         frame (0: unknown), into their running means (rate ``ref_rate``)."""
         a = self.cfg.ref_rate
-        d = self.density
-        self.density = float(n_on) if d is None else d + a * (n_on - d)
+        self.density = _running(self.density, float(n_on), a)
         if dt_s > 0.0:
-            iv = self.interval
-            self.interval = dt_s if iv is None else iv + a * (dt_s - iv)
+            self.interval = _running(self.interval, dt_s, a)
+
+
+def _running(mean: float | None, x: float, rate: float) -> float:
+    """An exponential running mean moved towards ``x`` at ``rate``; ``x`` itself first."""
+    return x if mean is None else mean + rate * (x - mean)
