@@ -144,13 +144,17 @@ def job(task: tuple[int, float, tuple[str, ...], str, float, float, float]) -> l
     b = int(gt.t[0] + (s0 + length) * 1e9)
     keep = (seq.events.t < a) | (seq.events.t >= b)
     cut = Sequence(seq.events[keep], seq.calib, seq.imu, gt)
-    pcfg, _ = robust._configs(KIND, cut, False)
-    if pcfg.rectify != 'none':
-        pcfg = with_calibration(pcfg, cut.calib)
-    t, imgs = frames_from_events(cut.events, pcfg)
     small = Sequence(cut.events[:1], cut.calib, cut.imu, gt)
+    framings: dict[bool, tuple[np.ndarray, np.ndarray]] = {}
     rows = []
     for method in methods:
+        imu = method == 'hrn_imu' and robust.imu_framing(KIND)   # the packets of a fused gyro
+        if imu not in framings:
+            pcfg, _ = robust._configs(KIND, cut, imu)
+            if pcfg.rectify != 'none':
+                pcfg = with_calibration(pcfg, cut.calib)
+            framings[imu] = frames_from_events(cut.events, pcfg)
+        t, imgs = framings[imu]
         rows.append(_judge(seed, method, small, t, imgs, win, int((~keep).sum())))
     return rows
 

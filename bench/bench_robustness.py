@@ -4,7 +4,9 @@ simulated sequences (:mod:`hrn_vo_ros.core.sim.family`).
 For each kind and each of N fresh draws (seeds 10000 on; ``--tuning`` uses the tuning draws
 0-99 instead), a worker simulates the draw, makes the event frames once with the kind's config
 (``config/<kind>.yaml`` via :data:`bench_accuracy.CASES`, the packetizer rectifying with the
-draw's calibration, as ``hrn-vo run``) and runs every method on the same frames; the estimates
+draw's calibration, as ``hrn-vo run``) and runs every method on the same frames (HRN + IMU on
+the packets of a fused gyro when the config sets ``imu.max_frame_ms``, as ``hrn-vo run --imu``
+makes them; :func:`imu_framing`); the estimates
 are evaluated with the paper's protocol (:func:`hrn_vo_ros.core.evaluation.protocol.evaluate`).
 Workers run in parallel over ``--jobs`` processes (default: all cores), each single-threaded.
 
@@ -163,10 +165,12 @@ def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
     with tempfile.TemporaryDirectory() as tmp:        # calib.txt + meta.json, one event
         stub = ecd.write_sequence(Path(tmp) / 'stub', Sequence(seq.events[:1], seq.calib))
         over: dict[str, Any] = dict(OVERRIDES)
-        if imu:
+        pk: dict[str, Any] = dict(P_OVERRIDES)
+        if imu:                             # as hrn-vo run --imu: both stages know the gyro
             over['imu.enabled'] = True
+            pk['imu.enabled'] = True
         dc = dataset_configs(ROOT / 'config' / CASES[kind].config, stub,
-                             packetizer=dict(P_OVERRIDES), resonator=over)
+                             packetizer=pk, resonator=over)
     return dc.packetizer, dc.resonator
 
 
@@ -179,10 +183,21 @@ def _config_tag(kind: str) -> str:
     return '_p' + hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
-def _frames(kind: str, seed: int, seconds: float, cache: str
+def imu_framing(kind: str) -> bool:
+    """Whether the kind's config (with ``--pset``) makes other packets for a fused gyro
+    (``imu.max_frame_ms`` set and unlike ``max_frame_ms``): HRN + IMU then runs on those."""
+    with open(ROOT / 'config' / CASES[kind].config) as f:
+        section = yaml.safe_load(f)['packetizer_node']['ros__parameters']
+    ms = float(P_OVERRIDES.get('imu.max_frame_ms', section.get('imu', {}).get('max_frame_ms', 0)))
+    return ms > 0 and ms != float(P_OVERRIDES.get('max_frame_ms', section.get('max_frame_ms', 0)))
+
+
+def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False
             ) -> tuple[Any, Sequence, dict[str, float], np.ndarray, np.ndarray]:
-    """The draw, its sequence (events cut to one), motion summary and frames; cached."""
-    tag = ''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items())) + _config_tag(kind)
+    """The draw, its sequence (events cut to one), motion summary and frames (``imu``: the
+    packets of a fused gyro); cached."""
+    tag = (''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items())) + _config_tag(kind)
+           + ('_imu' if imu else ''))
     path = Path(cache) / f'{kind}_{seed}_{seconds:g}{tag}.pkl' if cache else None
     if path is not None and path.exists():
         with open(path, 'rb') as f:
@@ -199,7 +214,7 @@ def _frames(kind: str, seed: int, seconds: float, cache: str
             with open(raw, 'wb') as f:
                 pickle.dump(seq, f)
     info = describe_motion(seq)
-    pcfg, _ = _configs(kind, seq, False)
+    pcfg, _ = _configs(kind, seq, imu)
     if pcfg.rectify != 'none':
         pcfg = with_calibration(pcfg, seq.calib)
     t, imgs = frames_from_events(seq.events, pcfg)
@@ -278,11 +293,13 @@ def losses(t_s: np.ndarray, err: np.ndarray, thr: float
 def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
     """Simulate one draw and run and evaluate every method on it (in a worker process)."""
     kind, seed, seconds, methods, trace, cache = task
-    d, seq, info, t, imgs = _frames(kind, seed, seconds, cache)
-    peak = info['peak_deg_s'] if kind == 'rotation' else info['peak_m_s']
-    assert seq.groundtruth is not None
+    framings = {imu: _frames(kind, seed, seconds, cache, imu)
+                for imu in {m == 'hrn_imu' and imu_framing(kind) for m in methods}}
     out = []
     for method in methods:
+        d, seq, info, t, imgs = framings[method == 'hrn_imu' and imu_framing(kind)]
+        peak = info['peak_deg_s'] if kind == 'rotation' else info['peak_m_s']
+        assert seq.groundtruth is not None
         t0 = time.perf_counter()
         note, med, lost, lost_s, eps = '', math.inf, True, seconds, []
         silent: int | None = None

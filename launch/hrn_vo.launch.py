@@ -37,7 +37,7 @@ ARGUMENTS = [
     ('camera_info_topic', 'event_camera/camera_info',
      'the CameraInfo topic (read when the config rectifies without calib.*)'),
     ('imu_topic', 'imu', 'the sensor_msgs/Imu topic (used with use_imu:=true)'),
-    ('use_imu', 'false', "fuse the gyro (sets the resonator's imu.enabled)"),
+    ('use_imu', 'false', 'fuse the gyro (sets imu.enabled of the resonator and the packetizer)'),
     ('focal_px', '0.0',
      'focal length in frame pixels, fx / downsample (about 79.6 for a DAVIS240C at 2.5), for '
      "the IMU prediction, the sphere correction and the odometry calibration "
@@ -95,7 +95,9 @@ def _nodes(context, *args, **kwargs):
     actions = [
         Node(package='hrn_vo_ros', executable='packetizer_node', name='packetizer_node',
              namespace=namespace,
-             parameters=[_node_params(config, 'packetizer_node', namespace), sim_time],
+             # use_imu: the packets of a fused gyro (imu.max_frame_ms of the config)
+             parameters=[_node_params(config, 'packetizer_node', namespace),
+                         {'imu.enabled': resonator['imu.enabled']}, sim_time],
              remappings=[('~/events', topic['events_topic']),
                          ('~/camera_info', topic['camera_info_topic'])],
              output='screen'),

@@ -76,7 +76,8 @@ def graph_ros_args(params_file: Path | None, *, imu: bool, overrides: dict[str, 
     # A deep frame queue (~70 MB at most) absorbs the resonator falling behind for a while on a
     # loaded machine, so replay loses no frame; live use keeps the node default.
     pk = ros_args(params_file, {'events_reliable': True, 'diagnostics_period_s': 0.25,
-                                'frames_depth': FRAMES_DEPTH, 'events_keep_all': paced},
+                                'frames_depth': FRAMES_DEPTH, 'events_keep_all': paced,
+                                'imu.enabled': imu},       # the packets of a fused gyro
                   {'~/events': events_topic, '~/camera_info': CAMERA_INFO_TOPIC})
     rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, 'frames_depth': FRAMES_DEPTH,
                  'max_pending_frames': FRAMES_DEPTH, 'imu_depth': 50 * FRAMES_DEPTH, **overrides}
@@ -232,7 +233,7 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
     rs: dict[str, object] = {'imu.enabled': imu}
     if dataset is None:
         return {}, rs
-    dc = dataset_configs(params_file, dataset, resonator=rs)
+    dc = dataset_configs(params_file, dataset, packetizer={'imu.enabled': imu}, resonator=rs)
     focal = read_calib(dataset).fx / dc.packetizer.downsample
     return dict(dc.packetizer_overrides), {**dc.resonator_overrides,
                                            'odometry.focal_length_px': focal}

@@ -30,7 +30,8 @@ odometry pipeline, ``core.pipeline`` driven by ``io.pipeline``) and writes
 the estimate CSV ``t,h,v,r[,z]`` (``io.estimates``): ``t`` packet midpoint in seconds, ``h``, ``v``
 camera position in the map in frame pixels, ``r`` roll in radians (right-handed about the optical
 axis, unwrapped), ``z`` log scale (when ``scale.enabled``). With ``--imu`` the gyro of
-``imu.txt``, integrated between frame times, drives the prediction step. The sensor size comes
+``imu.txt``, integrated between frame times, drives the prediction step, and the packetizer
+makes the packets of a fused gyro (``imu.enabled``: ``imu.max_frame_ms``). The sensor size comes
 from the dataset; the frame size of the resonator follows the packetizer's.
 """
 
@@ -169,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError('--imu reads imu.txt of a dataset; for a bag pass --imu-topic TOPIC')
     if args.imu or args.imu_topic:
         rs_over['imu.enabled'] = True
+        pk_over['imu.enabled'] = True          # the packets of a fused gyro (imu.max_frame_ms)
     info = inspect_bag(dataset, args.events_topic) if bag else None
     resolved = input_configs(args.config, dataset, bag=info, sensor_size=args.sensor_size,
                              packetizer=pk_over, resonator=rs_over)

@@ -38,11 +38,11 @@ OURS = ('shapes_rotation.yaml', 'shapes_translation.yaml', 'robot_arm.yaml')
 
 
 def synthetic_dataset(folder: Path, n_frames: int = 60, shift_per_frame: float = 0.15,
-                      roll_per_frame: float = 0.004) -> Path:
+                      roll_per_frame: float = 0.004, frame_ns: int = 5_000_000) -> Path:
     """Events of a sensor (240x180) panning right and rolling over a shapes scene.
 
-    Each 2000-event packet is drawn from the edge pixels of the view at one pose; the camera
-    moves right (+h) and rolls (+r), so the estimates must increase.
+    Each 2000-event packet is drawn from the edge pixels of the view at one pose, spread over
+    ``frame_ns``; the camera moves right (+h) and rolls (+r), so the estimates must increase.
     """
     rng = np.random.default_rng(3)
     scene = random_scene(rng, size=1000, n_shapes=700)
@@ -53,7 +53,7 @@ def synthetic_dataset(folder: Path, n_frames: int = 60, shift_per_frame: float =
         img = event_frame(scene, pose, rng, width=240, height=180, noise=0.0)
         ys, xs = np.nonzero(img)
         pick = rng.choice(len(xs), 2000, replace=len(xs) < 2000)
-        t.append(t0 + i * 5_000_000 + np.sort(rng.integers(0, 5_000_000, 2000)))
+        t.append(t0 + i * frame_ns + np.sort(rng.integers(0, frame_ns, 2000)))
         x.append(xs[pick])
         y.append(ys[pick])
     tt = np.concatenate(t)
@@ -62,8 +62,8 @@ def synthetic_dataset(folder: Path, n_frames: int = 60, shift_per_frame: float =
     calib = CameraCalibration(width=240, height=180, fx=200.0, fy=200.0, cx=119.5, cy=89.5)
     ti = np.arange(0, tt[-1] + 2_000_000, 1_000_000, dtype=np.int64)
     gyro = np.zeros((len(ti), 3))
-    gyro[:, 2] = roll_per_frame / 5e-3       # rad/s about the optical axis
-    gyro[:, 1] = 0.15 / 200.0 / 5e-3         # pan right: 0.15 frame px / frame
+    gyro[:, 2] = roll_per_frame / (frame_ns * 1e-9)      # rad/s about the optical axis
+    gyro[:, 1] = 0.15 / 200.0 / (frame_ns * 1e-9)        # pan right: 0.15 frame px / frame
     imu = ImuData(t=ti, acc=np.zeros((len(ti), 3)), gyro=gyro)
     return write_sequence(folder, Sequence(events=ev, calib=calib, imu=imu))
 
@@ -113,12 +113,29 @@ def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Pa
     assert '60 frames in' in capsys.readouterr().out
 
 
+def test_run_with_the_gyro_makes_the_packets_of_a_fused_gyro(tmp_path: Path) -> None:
+    """A slow camera (2000 events per 400 ms): without the gyro one frame per 2000 events; with
+    --imu the rotation config's imu.max_frame_ms (100 ms, at least min_frame_events 250) closes
+    packets of about 500 events, four per 400 ms."""
+    data = synthetic_dataset(tmp_path / 'slow', n_frames=6, frame_ns=400_000_000)
+    cfg = ROOT / 'config' / 'shapes_rotation.yaml'
+    counts = {}
+    for imu in (False, True):
+        out = tmp_path / f'est_{imu}.csv'
+        assert main(['run', str(data), '--config', str(cfg), '--out', str(out), '--quiet']
+                    + (['--imu'] if imu else [])) == 0
+        counts[imu] = len(read_estimates(out))
+    assert counts[False] == 6
+    assert 20 <= counts[True] <= 25
+
+
 def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0
                    ) -> tuple[EstimateSeries, list[float], list[str]]:
     """``hrn-vo run``'s estimates written out as a plain loop (packetizer, gyro angles
     differenced per frame, resonator), independent of the pipeline modules; with the
     per-frame quality and state."""
-    dc = dataset_configs(config, dataset, resonator={'imu.enabled': True} if imu else {})
+    on = {'imu.enabled': True} if imu else {}
+    dc = dataset_configs(config, dataset, packetizer=on, resonator=on)
     pcfg, rcfg = dc.packetizer, dc.resonator
     gyro = GyroIntegrator.from_imu(read_imu(dataset), np.reshape(rcfg.imu.camera_from_imu,
                                                                  (3, 3))) if imu else None
@@ -163,7 +180,8 @@ def test_run_and_the_pipeline_give_identical_series(dataset: Path, tmp_path: Pat
     loop, quality, state = reference_loop(dataset, cfg, imu)
     write_estimates(tmp_path / 'loop.csv', loop, quality=quality, state=state)
     write_estimates(tmp_path / 'loop_base.csv', loop)
-    dc = dataset_configs(cfg, dataset, resonator={'imu.enabled': True} if imu else {})
+    on = {'imu.enabled': True} if imu else {}
+    dc = dataset_configs(cfg, dataset, packetizer=on, resonator=on)
     pipe = dataset_pipeline(dataset, dc.packetizer,
                             lambda: make_backend(dc.resonator, rng=np.random.default_rng(0)),
                             imu=imu, with_z=dc.resonator.scale.enabled)

@@ -158,6 +158,8 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
         assert param('/resonator_node', 'focal_px') == 'Double value is: 79.6'
         assert param('/resonator_node', 'use_sim_time') == 'Boolean value is: False'
         assert param('/packetizer_node', 'events_per_frame') == 'Integer value is: 2000'
+        # use_imu also gives the packetizer the packets of a fused gyro
+        assert param('/packetizer_node', 'imu.enabled') == 'Boolean value is: True'
         # the resonator reads the packetizer's frames; the packetizer the camera topic
         wait_for('the frames link', lambda: counts('/packetizer_node/frames') == (1, 1))
         wait_for('the events subscription', lambda: counts('/event_camera/events')[1] == 1)

@@ -17,7 +17,11 @@ ns, rounded down).
 ``max_frame_ms`` and holds at least ``min_frame_events`` events (:func:`packet_ends`), so a slow
 camera or a sparse scene still gives frames at a steady rate (fixed 2000-event packets give a
 scene of 3 k events/s 1.5 frames/s, too few to follow a rotation). Fast, busy scenes fill their
-``events_per_frame`` first and are binned as before.
+``events_per_frame`` first and are binned as before. With a fused gyro (``imu.enabled``, set by
+the launch file's ``use_imu:=true`` and ``hrn-vo run --imu``) ``imu.max_frame_ms`` replaces
+``max_frame_ms``: the gyro carries the motion between frames, so there the frame rate counts
+more than what each frame holds; without it short sparse frames cost more than they give
+(docs/results.md).
 
 **Rectification** (``rectify``: ``none``, ``pinhole`` or ``equidistant``; :mod:`.camera`) moves
 each sensor pixel to its rectified continuous position before the same division and rounding, so
@@ -94,6 +98,18 @@ class CalibrationConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class FramingImuConfig:
+    """Packets when the resonator fuses a gyro: the gyro carries the motion between frames, so
+    a steady frame rate matters more than the information of each frame (docs/demo.md)."""
+
+    enabled: bool = param(False, 'the resonator fuses a gyro (launch use_imu:=true, hrn-vo '
+                          'run --imu): packets close by imu.max_frame_ms')
+    max_frame_ms: float = param(0.0, 'with the gyro, a packet also closes once it spans this '
+                                'many ms and holds at least min_frame_events events; 0: '
+                                'max_frame_ms as without the gyro', lo=0.0, hi=1e6)
+
+
+@dataclass(frozen=True, slots=True)
 class PacketizerConfig:
     """How events become frames (one packet of ``events_per_frame`` events per frame)."""
 
@@ -136,20 +152,31 @@ class PacketizerConfig:
     min_frame_events: int = param(500, 'fewest events of a packet closed by max_frame_ms (a '
                                   'still camera waits for them)', lo=1, hi=10_000_000)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
+    imu: FramingImuConfig = nested(FramingImuConfig, 'packets with a fused gyro')
 
     def __post_init__(self) -> None:
         validate(self)
         if not math.isfinite(self.downsample):
             raise ConfigError('PacketizerConfig.downsample must be a finite number >= 1')
-        if self.max_frame_ms > 0 and self.min_frame_events > self.events_per_frame:
-            raise ConfigError(f'min_frame_events ({self.min_frame_events}) is above '
-                              f'events_per_frame ({self.events_per_frame}): no packet could '
-                              'close by time; lower min_frame_events or set max_frame_ms 0')
+        for name, ms in (('max_frame_ms', self.max_frame_ms),
+                         ('imu.max_frame_ms', self.imu.max_frame_ms)):
+            if ms > 0 and self.min_frame_events > self.events_per_frame:
+                raise ConfigError(f'min_frame_events ({self.min_frame_events}) is above '
+                                  f'events_per_frame ({self.events_per_frame}): no packet '
+                                  f'could close by time; lower min_frame_events or set {name} 0')
+
+    @property
+    def frame_ms(self) -> float:
+        """The packet time limit in force: ``imu.max_frame_ms`` when ``imu.enabled`` and it is
+        set, else ``max_frame_ms`` (0: packets close by count only)."""
+        if self.imu.enabled and self.imu.max_frame_ms > 0:
+            return self.imu.max_frame_ms
+        return self.max_frame_ms
 
     @property
     def max_frame_ns(self) -> int:
-        """``max_frame_ms`` in int64 nanoseconds (0: packets close by count only)."""
-        return round(self.max_frame_ms * 1e6)
+        """:attr:`frame_ms` in int64 nanoseconds (0: packets close by count only)."""
+        return round(self.frame_ms * 1e6)
 
     @property
     def width(self) -> int:
@@ -196,7 +223,8 @@ def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]
     """End indices (exclusive) of the complete packets of the event times ``t``.
 
     A packet starting at event ``s`` (time ``t[s]``) closes after ``events_per_frame`` events,
-    or, with ``max_frame_ms`` > 0, at the first event at or after ``t[s] + max_frame_ms`` when
+    or, with a time limit (``max_frame_ms`` > 0, or ``imu.max_frame_ms`` with ``imu.enabled``:
+    :attr:`PacketizerConfig.frame_ms`), at the first event at or after ``t[s] + limit`` when
     it holds at least ``min_frame_events`` by then (else once it holds them). A packet is
     complete only when later events cannot change it: its count is reached, or an event at or
     after its window's end has arrived. So the same events give the same packets however they

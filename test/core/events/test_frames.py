@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import time
 
 from hypothesis import given, settings
@@ -15,6 +16,7 @@ from hrn_vo_ros.core.events.frames import (
     CalibrationConfig,
     downsample_lut,
     frames_from_events,
+    FramingImuConfig,
     packet_ends,
     Packetizer,
     PacketizerConfig,
@@ -104,6 +106,25 @@ def test_time_capped_packet_ends_by_hand() -> None:
     assert packet_ends(t, PacketizerConfig(events_per_frame=5)).tolist() == [5, 10, 15]
     with pytest.raises(ConfigError, match='min_frame_events'):
         PacketizerConfig(events_per_frame=10, min_frame_events=11, max_frame_ms=1.0)
+
+
+def test_imu_packets_close_by_their_own_limit() -> None:
+    ms = 1_000_000
+    t = np.array([0, 1, 2, 3, 2 * ms, 2 * ms + 1, 2 * ms + 2, 5 * ms, 9 * ms], np.int64)
+    # Without the gyro: fixed 5-event packets; with it (imu.enabled) the 1 ms limit: [0, 4)
+    # closes at the event at 2 ms, [4, 7) at the one at 5 ms, [7, 8) holds one event (< 3) and
+    # waits for its third.
+    imu = FramingImuConfig(enabled=True, max_frame_ms=1.0)
+    cfg = PacketizerConfig(events_per_frame=5, min_frame_events=3)
+    assert packet_ends(t, cfg).tolist() == [5]
+    with_gyro = replace(cfg, imu=imu)
+    assert with_gyro.frame_ms == 1.0 and with_gyro.max_frame_ns == ms
+    assert packet_ends(t, with_gyro).tolist() == [4, 7]
+    # The limit only applies with the gyro fused; 0 keeps max_frame_ms.
+    assert replace(cfg, imu=replace(imu, enabled=False)).frame_ms == 0.0
+    assert replace(cfg, max_frame_ms=2.0, imu=replace(imu, max_frame_ms=0.0)).frame_ms == 2.0
+    with pytest.raises(ConfigError, match='imu.max_frame_ms'):
+        PacketizerConfig(events_per_frame=5, min_frame_events=6, imu=imu)
 
 
 def test_time_capped_frames_by_hand() -> None:
