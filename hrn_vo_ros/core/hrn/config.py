@@ -252,6 +252,12 @@ class TrackingConfig:
                                   '(a first frame of noise before the camera moves has nothing '
                                   'to track; a jump converges in fewer frames; 0: off)',
                                   lo=0, hi=1000)
+    bootstrap_fill: float = param(4.0, 'while the map is still the frame it started from (map '
+                                  'learning blocked, map.block_iterations), a frame with more '
+                                  'than this many times its on pixels starts the map anew from '
+                                  'itself, at the pose the output reports (a short first packet '
+                                  'at the start of the motion is a thin map; 0: off)',
+                                  lo=0.0, hi=1000.0)
     remap_s: float = param(0.0, 'with the gyro, a track lost for this long (seconds of frame '
                            'time; no re-localisation found the map) starts a new map from the '
                            "current frame at the gyro's dead-reckoned pose, as the bootstrap "

@@ -125,6 +125,7 @@ class HRN:
         self._last: Estimate | None = None
         self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
+        self._map_on = 0                # on pixels of the frame the map started from
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
         self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
@@ -278,13 +279,14 @@ class HRN:
         prepared = self._prepare(image)
         if prepared is None:
             return self._repeat(t_ns)
-        img, n_on = prepared
+        img, n_on, n_in = prepared
         canvas = self._place(img)
         eng = self._engine
         first = not self._started
         if first:
             eng.start(canvas, self.rng)
             self._started = True
+            self._map_on = n_in
         dt_s = 0.0 if self._t_prev is None else max(t_ns - self._t_prev, 0) * 1e-9
         self._t_prev = t_ns
         if gyro_delta is not None:
@@ -313,8 +315,9 @@ class HRN:
                 S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro)
         self._point = point
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
+                                                 or self._thin_map(n_in)
                                                  or (self.tracker.remap_due(t_ns) and gyro)):
-            return self._restart(canvas, t_ns, spread, peak, sims, gyro=gyro)
+            return self._restart(canvas, t_ns, n_in, spread, peak, sims, gyro=gyro)
         self._follow(point, n_on, dt_s)
         updated = False
         if learn and (not c.tracking.enabled or (self.state != 'lost'
@@ -328,21 +331,23 @@ class HRN:
 
     # -- the steps of a frame ---------------------------------------------------------------
 
-    def _prepare(self, image: NDArray[Any]) -> tuple[NDArray[np.float64], int] | None:
-        """The checked (and sphere-warped) frame and its on-pixel count; None: skip it."""
+    def _prepare(self, image: NDArray[Any]) -> tuple[NDArray[np.float64], int, int] | None:
+        """The checked (and sphere-warped) frame, its on-pixel count and that before the warp
+        (which spreads each pixel over up to four); None: skip it."""
         c = self.cfg
         img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'resonator')
         if not usable:
             return None
         img = self._mask_hot(img)
-        if not img.any():
+        n_in = int(np.count_nonzero(img))
+        if not n_in:
             return None
         if self._sphere is not None and self._started:   # the last pose's non-rigid part
             raw = self._pose.raw
             img = self._sphere.warp(img, raw['h'], raw['v'], raw['r'])
             if not img.any():             # every event warped off the frame: nothing to use
                 return None
-        return img, int(np.count_nonzero(img))
+        return img, int(np.count_nonzero(img)), n_in
 
     def _mask_hot(self, img: NDArray[np.float64]) -> NDArray[np.float64]:
         """Zero the pixels that were on in more than ``hot_pixel_on`` of the recent frames
@@ -475,15 +480,26 @@ class HRN:
             target = eng.map_target(S, point)
         return point, spread, peak, sims, target
 
-    def _restart(self, canvas: Floats, t_ns: int, spread: dict[str, float],
+    def _thin_map(self, n_in: int) -> bool:
+        """Whether the map is still its first frame (learning blocked) and this frame has more
+        than ``tracking.bootstrap_fill`` times its on pixels (both counted before the sphere
+        warp)."""
+        c = self.cfg
+        fill = c.tracking.bootstrap_fill
+        return (fill > 0.0 and self.iteration - self._map_iteration <= c.map.block_iterations
+                and n_in > fill * self._map_on)
+
+    def _restart(self, canvas: Floats, t_ns: int, n_in: int, spread: dict[str, float],
                  peak: dict[str, float], sims: dict[str, Real], *, gyro: bool) -> Estimate:
-        """Bootstrap (``tracking.bootstrap_frames``): poor frames before the map was ever
-        tracked say that the map's frame had nothing to track (noise before the camera moved,
-        a blur): this frame starts a new map, at the pose the output reports now, and the
-        track must establish itself on it again."""
+        """Bootstrap (``tracking.bootstrap_frames``, ``bootstrap_fill``): poor frames before
+        the map was ever tracked say that the map's frame had nothing to track (noise before the
+        camera moved, a blur), and a frame with many more pixels than the map's says the map is
+        thin: this frame starts a new map, at the pose the output reports now, and the track
+        must establish itself on it again."""
         out = self._emit(t_ns, self._point, spread, peak, sims, False, gyro=gyro)
         self._pose.restart()
         self._engine.start(canvas, self.rng)
+        self._map_on = n_in
         self._map_iteration = self.iteration
         self._new_origin()
         self.tracker.restart()
