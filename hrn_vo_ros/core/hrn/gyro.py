@@ -7,7 +7,7 @@ binds ``Rot(-alpha) d`` into ``h, v`` (``alpha`` the current content angle) and
 ``-theta_z / unit_r`` into ``r``. :func:`rotation_of_shift` is the inverse: the rotation a
 difference of readouts stands for.
 
-Bias ([design]; ``imu.bias_memory_s``, off in every shipped configuration): while vision
+Bias ([design]; ``imu.bias_memory_s``, 30 s in the rotation config, off elsewhere): while vision
 tracks, the readout minus the gyro's prediction (the innovation) measures the gyro's error over
 the frame, ``-(bias - b) dt``, plus the readout's error; :class:`GyroBias` averages it over the
 tracked time with a prior of zero bias, and the predictions subtract the estimate, so that the
