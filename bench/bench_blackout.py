@@ -146,9 +146,10 @@ def job(task: tuple[int, float, tuple[str, ...], str, float, float, float]) -> l
     cut = Sequence(seq.events[keep], seq.calib, seq.imu, gt)
     small = Sequence(cut.events[:1], cut.calib, cut.imu, gt)
     framings: dict[bool, tuple[np.ndarray, np.ndarray]] = {}
+    gyro_packets = robust.imu_framing(KIND)
     rows = []
     for method in methods:
-        imu = method == 'hrn_imu' and robust.imu_framing(KIND)   # the packets of a fused gyro
+        imu = method == 'hrn_imu' and gyro_packets   # the packets of a fused gyro
         if imu not in framings:
             pcfg, _ = robust._configs(KIND, cut, imu)
             if pcfg.rectify != 'none':

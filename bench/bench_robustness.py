@@ -293,11 +293,12 @@ def losses(t_s: np.ndarray, err: np.ndarray, thr: float
 def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
     """Simulate one draw and run and evaluate every method on it (in a worker process)."""
     kind, seed, seconds, methods, trace, cache = task
+    gyro_packets = imu_framing(kind)
     framings = {imu: _frames(kind, seed, seconds, cache, imu)
-                for imu in {m == 'hrn_imu' and imu_framing(kind) for m in methods}}
+                for imu in {m == 'hrn_imu' and gyro_packets for m in methods}}
     out = []
     for method in methods:
-        d, seq, info, t, imgs = framings[method == 'hrn_imu' and imu_framing(kind)]
+        d, seq, info, t, imgs = framings[method == 'hrn_imu' and gyro_packets]
         peak = info['peak_deg_s'] if kind == 'rotation' else info['peak_m_s']
         assert seq.groundtruth is not None
         t0 = time.perf_counter()
