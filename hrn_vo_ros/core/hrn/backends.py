@@ -41,10 +41,14 @@ class ResonatorBackend(Protocol):
     iteration: int
     rejected_frames: int      # frames rejected by the IMU innovation gate (imu.gate_deg)
     limited_frames: int       # readouts cut by the IMU correction limit (imu.max_correction_*)
-    hot_pixels: int           # on pixels of the last frame masked as hot (hot_pixel_*)
     tracker: Tracker          # quality, state and their counts (tracker.distinct: smoothed
     #                           distinctiveness, NaN when not computed)
     gyro_bias: GyroBias       # the online gyro bias estimate (imu.bias_memory_s)
+
+    @property
+    def hot_pixels(self) -> int:
+        """On pixels of the last frame masked as hot (hot_pixel_*)."""
+        ...
 
     def step(self, image: NDArray[Any], t_ns: int, *,
              gyro_delta: NDArray[Any] | None = None) -> Estimate:

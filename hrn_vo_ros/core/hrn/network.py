@@ -46,6 +46,7 @@ from hrn_vo_ros.core.hrn.dense import DenseEngine
 from hrn_vo_ros.core.hrn.engine import Engine, EngineFactory
 from hrn_vo_ros.core.hrn.fast import FastEngine
 from hrn_vo_ros.core.hrn.gyro import GyroBias, rotation_deg, rotation_of_shift, shift_of_rotation
+from hrn_vo_ros.core.hrn.hotpixels import HotPixelMask
 from hrn_vo_ros.core.hrn.logpolar import make_geometry
 from hrn_vo_ros.core.hrn.pose import ReportedPose
 from hrn_vo_ros.core.hrn.shared import (
@@ -116,6 +117,7 @@ class HRN:
         self.gyro_bias = GyroBias(c.imu.bias_memory_s, c.imu.bias_prior_s,
                                   math.radians(c.imu.max_bias_deg_s))
         self._pose = ReportedPose()            # the output (core/hrn/pose.py)
+        self._hot = HotPixelMask(c.width, c.height, c.hot_pixel_rate, c.hot_pixel_on)
         self.reset()
 
     def reset(self) -> None:
@@ -133,8 +135,7 @@ class HRN:
         self._new_origin()
         self.tracker.reset()
         self.gyro_bias.reset()
-        self._on_frac = np.zeros((self.cfg.height, self.cfg.width))  # running on-fraction
-        self.hot_pixels = 0             # on pixels masked as hot in the last frame
+        self._hot.reset()
 
     def _new_origin(self) -> None:      # a new map: its origin, no velocity
         self._point = dict.fromkeys(self.factors, 0.0)          # index units, wrapped
@@ -146,6 +147,11 @@ class HRN:
     def state(self) -> str:
         """``tracking``, ``degraded`` or ``lost``."""
         return self.tracker.state
+
+    @property
+    def hot_pixels(self) -> int:
+        """On pixels masked as hot in the last frame (:mod:`.hotpixels`)."""
+        return self._hot.masked
 
     @property
     def quality(self) -> float:
@@ -338,34 +344,17 @@ class HRN:
         img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'resonator')
         if not usable:
             return None
-        img = self._mask_hot(img)
-        n_in = int(np.count_nonzero(img))
+        img = self._hot.apply(img)
+        n_in = n_on = int(np.count_nonzero(img))
         if not n_in:
             return None
         if self._sphere is not None and self._started:   # the last pose's non-rigid part
             raw = self._pose.raw
             img = self._sphere.warp(img, raw['h'], raw['v'], raw['r'])
-            if not img.any():             # every event warped off the frame: nothing to use
+            n_on = int(np.count_nonzero(img))
+            if not n_on:                  # every event warped off the frame: nothing to use
                 return None
-        return img, int(np.count_nonzero(img)), n_in
-
-    def _mask_hot(self, img: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Zero the pixels that were on in more than ``hot_pixel_on`` of the recent frames
-        (hot or flickering pixels stay put while the scene moves: left in, they pull the
-        estimate towards standing still), then update the running on-fraction. A frame whose
-        on pixels would be mostly masked is a still view of real edges (frames made without
-        motion), not hot pixels, and is left whole."""
-        a = self.cfg.hot_pixel_rate
-        if a <= 0.0:
-            return img
-        f = self._on_frac
-        on = img > 0.0
-        hot = (f > self.cfg.hot_pixel_on) & on
-        f *= 1.0 - a
-        f += a * on
-        n_hot = int(np.count_nonzero(hot))
-        self.hot_pixels = n_hot if 2 * n_hot <= int(np.count_nonzero(on)) else 0
-        return np.where(hot, 0.0, img) if self.hot_pixels else img
+        return img, n_on, n_in
 
     def _predict(self, first: bool, gyro_delta: NDArray[Any] | None
                  ) -> tuple[dict[str, float] | None, dict[str, Any], dict[str, float]]:
@@ -484,8 +473,7 @@ class HRN:
         """Whether the map is still its first frame (learning blocked) and this frame has more
         than ``tracking.bootstrap_fill`` times its on pixels (both counted before the sphere
         warp)."""
-        c = self.cfg
-        fill = c.tracking.bootstrap_fill
+        c, fill = self.cfg, self.cfg.tracking.bootstrap_fill
         return (fill > 0.0 and self.iteration - self._map_iteration <= c.map.block_iterations
                 and n_in > fill * self._map_on)
 
