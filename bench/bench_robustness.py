@@ -93,7 +93,7 @@ from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
 from hrn_vo_ros.errors import DatasetError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
-from hrn_vo_ros.io.yamlconfig import dataset_configs  # noqa: E402
+from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs  # noqa: E402
 
 KINDS = ('rotation', 'translation', 'arm')
 METHODS = ('hrn', 'hrn_imu', 'spiking', 'baseline')
@@ -185,11 +185,12 @@ def _config_tag(kind: str) -> str:
 
 def imu_framing(kind: str) -> bool:
     """Whether the kind's config (with ``--pset``) makes other packets for a fused gyro
-    (``imu.max_frame_ms`` set and unlike ``max_frame_ms``): HRN + IMU then runs on those."""
-    with open(ROOT / 'config' / CASES[kind].config) as f:
-        section = yaml.safe_load(f)['packetizer_node']['ros__parameters']
-    ms = float(P_OVERRIDES.get('imu.max_frame_ms', section.get('imu', {}).get('max_frame_ms', 0)))
-    return ms > 0 and ms != float(P_OVERRIDES.get('max_frame_ms', section.get('max_frame_ms', 0)))
+    (its packet time limit, ``PacketizerConfig.frame_ms``, changes with ``imu.enabled``):
+    HRN + IMU then runs on those."""
+    path = ROOT / 'config' / CASES[kind].config
+    plain = load_configs(path, packetizer=P_OVERRIDES)[0]
+    gyro = load_configs(path, packetizer={**P_OVERRIDES, 'imu.enabled': True})[0]
+    return gyro.frame_ms != plain.frame_ms
 
 
 def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False
