@@ -29,12 +29,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.spiking.config import SpikingConfig
-from hrn_vo_ros.core.spiking.neurons import encode, rf_cycle_int, Spikes
+from hrn_vo_ros.core.spiking.neurons import encode, rf_cycle_kicks, Spikes
 from hrn_vo_ros.core.spiking.synapses import (
     ComplexSynapses,
     drive_many,
     LayerCounts,
-    scale_kicks,
+    scale_kicks_float,
 )
 
 Complex = NDArray[np.complex128]
@@ -179,33 +179,33 @@ class SpikingCleanup:
         pair_g = np.stack([prev_scaled, f_scaled], axis=1)
         return Spikes(pair_t, pair_g, e, cfg.steps_per_cycle)
 
-    def _mix_kicks(self, pairs: Spikes) -> tuple[Int, Int] | None:
-        """Counts of the state layer; its integer kicks (None in float precision)."""
+    def _mix_kicks(self, pairs: Spikes, out: Real | None) -> None:
+        """Counts of the state layer; its integer kicks written into ``out`` (zeros on entry,
+        the (T, 2, n) layout of :func:`~hrn_vo_ros.core.spiking.neurons.rf_cycle_kicks`; None
+        in float precision)."""
         n = pairs.t.shape[0]
         c = self.counts['state']
         c.spikes_in += int(np.count_nonzero(pairs.g))
         c.synops += int(np.count_nonzero(pairs.g)) * (2 if self.cfg.synapse == 'kick' else 1)
         c.neuron_updates += n * self.cfg.steps_per_cycle
-        if not self.cfg.quantised:
-            return None
+        if out is None:
+            return
         # The closed form of (RF) per neuron equals the step loop for two inputs except for
-        # the fixed-point rotation; the loop runs on all n neurons at once.
+        # the fixed-point rotation; the loop runs on all n neurons at once. Each input adds
+        # one kick per neuron (distinct (step, neuron) pairs per input: a fancy-index add).
         steps = self.cfg.steps_per_cycle
         q = self._mix._q
         assert q is not None
-        kre = np.zeros((n, steps), np.int64)
-        kim = np.zeros((n, steps), np.int64)
         rows = np.arange(n)
         for j in range(2):
             if self.cfg.synapse == 'kick':
-                np.add.at(kre, (rows, pairs.t[:, j]), q.re[0, j] * pairs.g[:, j])
-                np.add.at(kim, (rows, pairs.t[:, j]), q.im[0, j] * pairs.g[:, j])
+                out[pairs.t[:, j], 0, rows] += q.re[0, j] * pairs.g[:, j]
+                out[pairs.t[:, j], 1, rows] += q.im[0, j] * pairs.g[:, j]
             else:
                 assert self._mix._delay is not None
                 arrive = (pairs.t[:, j] + self._mix._delay[0, j]) % steps
-                np.add.at(kre, (rows, arrive), q.re[0, j] * pairs.g[:, j])
-        shift = self._mix._shift
-        return scale_kicks(kre, shift), scale_kicks(kim, shift)
+                out[arrive, 0, rows] += q.re[0, j] * pairs.g[:, j]
+        scale_kicks_float(out, self._mix._shift)
 
     def _mix_value(self, pairs: Spikes, ri: tuple[Int, Int] | None) -> Complex:
         """The state neurons' end-of-cycle value (float closed form, or the integer state)."""
@@ -243,20 +243,24 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
     drives = drive_many([(cl._out, p_sp, cl.counts['cleanup'])
                          for (cl, _, _), p_sp in zip(items, p_sps, strict=True)])
     pairs = [cl._pairs(d, st) for (cl, _, st), d in zip(items, drives, strict=True)]
-    kicks = [cl._mix_kicks(pr) for (cl, _, _), pr in zip(items, pairs, strict=True)]
-    ints = [k for k in kicks if k is not None]
     states: list[tuple[Int, Int] | None] = [None] * len(items)
-    if ints:
-        cfg = items[0][0].cfg
-        re, im, sat = rf_cycle_int(np.concatenate([k[0] for k in ints]),
-                                   np.concatenate([k[1] for k in ints]), cfg)
+    cfg = items[0][0].cfg if items else None
+    if cfg is None or not cfg.quantised:
+        for (cl, _, _), pr in zip(items, pairs, strict=True):
+            cl._mix_kicks(pr, None)
+    else:
+        sizes = [cl.size for cl, _, _ in items]
+        kicks = np.zeros((cfg.steps_per_cycle, 2, sum(sizes)))
+        start = 0
+        for (cl, _, _), pr, n in zip(items, pairs, sizes, strict=True):
+            cl._mix_kicks(pr, kicks[:, :, start:start + n])
+            start += n
+        re, im, sat = rf_cycle_kicks(kicks, cfg)
         items[0][0].counts['state'].saturated += sat
         start = 0
-        for i, k in enumerate(kicks):
-            if k is not None:
-                n = k[0].shape[0]
-                states[i] = (re[start:start + n], im[start:start + n])
-                start += n
+        for i, n in enumerate(sizes):
+            states[i] = (re[start:start + n], im[start:start + n])
+            start += n
     out = []
     for (cl, _, _), pr, ri, p in zip(items, pairs, states, ps, strict=True):
         out.append((encode(cl._mix_value(pr, ri), cl.cfg, fire_threshold=0.0), p))

@@ -255,24 +255,37 @@ def rf_cycle_int(kick_re: Int, kick_im: Int, cfg: SpikingConfig) -> tuple[Int, I
     Shapes:
         kick_re, kick_im: (n, T); re, im: (n,).
     """
+    kicks = np.stack([kick_re.T, kick_im.T], axis=1).astype(np.float64)
+    return rf_cycle_kicks(kicks, cfg)
+
+
+def rf_cycle_kicks(kicks: Real, cfg: SpikingConfig) -> tuple[Int, Int, int]:
+    """:func:`rf_cycle_int` with the kicks in the step loop's layout: ``kicks[t, 0]`` and
+    ``kicks[t, 1]`` are the real and imaginary integer inputs of all neurons at step ``t``, held
+    as float64 (integers below ``2^53``, so every sum of them is exact).
+
+    Shapes:
+        kicks: (T, 2, n); re, im: (n,) int64.
+    """
     c, s = rotation_constants(cfg)
     shift = cfg.decay_bits
     half = 1 << (shift - 1)
     bound = (1 << (cfg.state_bits - 1)) - 1
-    n, steps = kick_re.shape
+    steps, _, n = kicks.shape
     # No step can saturate if the whole cycle's input, grown by the rotation's gain and the
     # rounding (<= 1 per step and component), stays inside the bound: then skip the checks
     # (same result, a third of the operations).
     gain = max(1.0, math.hypot(c, s) / float(1 << shift)) ** steps
-    mass = float((np.abs(kick_re) + np.abs(kick_im)).sum(axis=1).max(initial=0))
+    mass = float(np.abs(kicks).sum(axis=(0, 1)).max(initial=0))
     if (mass + 2 * steps) * gain < bound:
-        return _rf_loop_unchecked(kick_re, kick_im, c, s, shift, half)
+        return _rf_loop_unchecked(kicks, c, s, shift, half)
+    k = kicks.astype(np.int64)
     re = np.zeros(n, np.int64)
     im = np.zeros(n, np.int64)
     saturated = 0
     for t in range(steps):
-        re += kick_re[:, t]
-        im += kick_im[:, t]
+        re += k[t, 0]
+        im += k[t, 1]
         re, im = (c * re + s * im + half) >> shift, (c * im - s * re + half) >> shift
         over = (np.abs(re) > bound) | (np.abs(im) > bound)
         if over.any():
@@ -282,20 +295,27 @@ def rf_cycle_int(kick_re: Int, kick_im: Int, cfg: SpikingConfig) -> tuple[Int, I
     return re, im, saturated
 
 
-def _rf_loop_unchecked(kick_re: Int, kick_im: Int, c: int, s: int, shift: int, half: int
+def _rf_loop_unchecked(kicks: Real, c: int, s: int, shift: int, half: int
                        ) -> tuple[Int, Int, int]:
-    """(RF-int) without saturation checks: ``(re, im) <- (M (re, im, 1)) >> shift`` with
-    ``M = [[c, s, half], [-s, c, half]]`` (the rounding offset as a third column), one integer
-    matrix product per step."""
-    n, steps = kick_re.shape
-    kicks = np.stack([kick_re.T, kick_im.T], axis=1)            # (T, 2, n), contiguous rows
-    z = np.zeros((3, n), np.int64)
-    z[2] = 1
+    """(RF-int) without saturation checks: ``(re, im) <- floor(M (re, im, 1) / 2^shift)`` with
+    ``M = [[c, s, half], [-s, c, half]]`` (the rounding offset as a third column), one matrix
+    product per step, in float64 (``M / 2^shift``): the caller's bound keeps ``|re|, |im|``
+    below ``2^(S-1)`` (``S`` state bits), so every product and partial sum is a multiple of
+    ``2^-shift`` below ``2^S``, at most ``S + shift <= 48`` significant bits: exact in any
+    order, and ``floor`` of it is the arithmetic shift of the integer form.
+
+    Shapes:
+        kicks: (T, 2, n) as :func:`rf_cycle_kicks`; returns (n,) int64 twice.
+    """
+    steps, _, n = kicks.shape
+    z = np.zeros((3, n))
+    z[2] = 1.0
     state = z[:2]
-    rot = np.array([[c, s, half], [-s, c, half]], np.int64)
-    tmp = np.empty((2, n), np.int64)
+    rot = np.array([[c, s, half], [-s, c, half]], np.float64) * 2.0 ** -shift
+    tmp = np.empty((2, n))
     for t in range(steps):
         state += kicks[t]
         np.matmul(rot, z, out=tmp)
-        np.right_shift(tmp, shift, out=state)
-    return z[0].copy(), z[1].copy(), 0
+        np.floor(tmp, out=state)
+    out = state.astype(np.int64)
+    return out[0], out[1], 0

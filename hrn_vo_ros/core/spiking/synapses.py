@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.spiking.config import SpikingConfig
-from hrn_vo_ros.core.spiking.neurons import phase_to_step, rf_cycle_int, Spikes
+from hrn_vo_ros.core.spiking.neurons import phase_to_step, rf_cycle_int, rf_cycle_kicks, Spikes
 from hrn_vo_ros.errors import ConfigError
 
 Complex = NDArray[np.complex128]
@@ -112,6 +112,16 @@ def scale_kicks(k: Int, shift: int) -> Int:
     return (k + (1 << (-shift - 1))) >> -shift
 
 
+def scale_kicks_float(k: Real, shift: int) -> None:
+    """:func:`scale_kicks` in place on integers held as float64 (exact below ``2^53``)."""
+    if shift >= 0:
+        k *= 2.0 ** shift
+    else:
+        k += float(1 << (-shift - 1))
+        k *= 2.0 ** shift
+        np.floor(k, out=k)
+
+
 @dataclass(slots=True)
 class LayerCounts:
     """Operation counts of one layer for one cycle (accumulated over a run by the caller)."""
@@ -146,6 +156,7 @@ class ComplexSynapses:
     _delay: Int | None = field(init=False, default=None)
     _nnz_col: Int = field(init=False)
     _shift: int = field(init=False, default=0)
+    _qt: Real | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         w = np.asarray(self.weights, dtype=np.complex128)
@@ -176,6 +187,9 @@ class ComplexSynapses:
                 self._eff = w
         if self._q is not None:
             self._shift = state_shift(self._q, self.cfg, self.tops)
+            # (re | im) mantissas per presynaptic neuron as float64 rows: kick products below
+            self._qt = np.ascontiguousarray(
+                np.concatenate([self._q.re, self._q.im]).T.astype(np.float64))
         per_syn = 2 if self.cfg.synapse == 'kick' else 1
         self._nnz_col = per_syn * np.count_nonzero(w, axis=0).astype(np.int64)
 
@@ -206,24 +220,41 @@ class ComplexSynapses:
     def kicks(self, spikes: Spikes) -> tuple[Int, Int]:
         """The integer kicks per target neuron and step, shifted into the state
         (``precision='loihi'`` only). Shapes: (n_out, T) each."""
-        assert self._q is not None
+        k = np.zeros((self.cfg.steps_per_cycle, 2, self._eff.shape[0]))
+        self.kicks_into(spikes, k)
+        ki = k.astype(np.int64)
+        return np.ascontiguousarray(ki[:, 0].T), np.ascontiguousarray(ki[:, 1].T)
+
+    def kicks_into(self, spikes: Spikes, out: Real) -> None:
+        """:meth:`kicks` in the step loop's layout of :func:`~.neurons.rf_cycle_kicks`, written
+        into ``out`` (zeros on entry; integers held as float64).
+
+        ``synapse='kick'``: the spikes of each step that has any, as rows of payloads, times the
+        mantissa matrix (one product for re and im; integers below ``2^53``: exact).
+
+        Shapes:
+            spikes: (n_in,); out: (T, 2, n_out).
+        """
+        assert self._q is not None and self._qt is not None
         n_out = self._eff.shape[0]
         steps = self.cfg.steps_per_cycle
-        g = spikes.g.astype(np.float64)
         if self.cfg.synapse == 'kick':
-            onehot = np.zeros((g.shape[0], steps))
-            onehot[np.arange(g.shape[0]), spikes.t] = g
-            kre = np.rint(self._q.re.astype(np.float64) @ onehot).astype(np.int64)
-            kim = np.rint(self._q.im.astype(np.float64) @ onehot).astype(np.int64)
+            live = np.flatnonzero(spikes.g)
+            if live.size:
+                t = spikes.t[live]
+                per_step = np.bincount(t, minlength=steps)
+                present = np.flatnonzero(per_step)
+                slot = np.cumsum(per_step > 0) - 1
+                rows = np.zeros((present.size, spikes.g.size))
+                rows[slot[t], live] = spikes.g[live]
+                out[present] += (rows @ self._qt).reshape(present.size, 2, n_out)
         else:
             assert self._delay is not None
             arrive = (spikes.t[None, :] + self._delay) % steps            # (n_out, n_in)
-            idx = (np.arange(n_out)[:, None] * steps + arrive).ravel()
+            idx = (arrive * n_out + np.arange(n_out)[:, None]).ravel()
             wts = (self._q.re * spikes.g[None, :]).ravel().astype(np.float64)
-            kre = np.rint(np.bincount(idx, wts, n_out * steps)).astype(np.int64)
-            kre = kre.reshape(n_out, steps)
-            kim = np.zeros_like(kre)
-        return scale_kicks(kre, self._shift), scale_kicks(kim, self._shift)
+            out[:, 0] += np.rint(np.bincount(idx, wts, n_out * steps)).reshape(steps, n_out)
+        scale_kicks_float(out, self._shift)
 
     def finish(self, re: Int, im: Int, spikes: Spikes) -> Complex:
         """The integer end-of-cycle state in value units."""
@@ -245,13 +276,16 @@ def drive_many(jobs: list[tuple[ComplexSynapses, Spikes, LayerCounts | None]]) -
         else:
             ints.append(i)
     if ints:
-        parts = [jobs[i][0].kicks(jobs[i][1]) for i in ints]
         cfg = jobs[ints[0]][0].cfg
-        re, im, sat = rf_cycle_int(np.concatenate([p[0] for p in parts]),
-                                   np.concatenate([p[1] for p in parts]), cfg)
+        sizes = [jobs[i][0]._eff.shape[0] for i in ints]
+        kicks = np.zeros((cfg.steps_per_cycle, 2, sum(sizes)))
         start = 0
-        for i, p in zip(ints, parts, strict=True):
-            n = p[0].shape[0]
+        for i, n in zip(ints, sizes, strict=True):
+            jobs[i][0].kicks_into(jobs[i][1], kicks[:, :, start:start + n])
+            start += n
+        re, im, sat = rf_cycle_kicks(kicks, cfg)
+        start = 0
+        for i, n in zip(ints, sizes, strict=True):
             syn, sp, counts = jobs[i]
             if counts is not None:
                 counts.saturated += sat if len(ints) == 1 else 0

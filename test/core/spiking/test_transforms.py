@@ -108,7 +108,8 @@ def test_unchecked_rf_loop_equals_the_checked_one() -> None:
     cfg = SpikingConfig(steps_per_cycle=32)
     c, s = rotation_constants(cfg)
     kre, kim = (rng.integers(-5000, 5000, (50, 32)) for _ in range(2))
-    fast = neurons._rf_loop_unchecked(kre, kim, c, s, cfg.decay_bits, 1 << (cfg.decay_bits - 1))
+    kicks = np.stack([kre.T, kim.T], axis=1).astype(np.float64)        # (T, 2, n)
+    fast = neurons._rf_loop_unchecked(kicks, c, s, cfg.decay_bits, 1 << (cfg.decay_bits - 1))
     re, im = np.zeros(50, np.int64), np.zeros(50, np.int64)
     for t in range(32):
         re, im = re + kre[:, t], im + kim[:, t]
