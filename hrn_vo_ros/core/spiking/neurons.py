@@ -43,6 +43,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import functools
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -121,27 +122,33 @@ def phase_codes(z: NDArray[np.complexfloating], steps: int) -> NDArray[np.uint8]
     z = np.asarray(z)
     if z.ndim == 0:                      # (the in-place steps below need arrays)
         return phase_codes(z.reshape(1), steps).reshape(())
-    bounds = _octant_bounds(steps)
-    per = len(bounds) + 1
     x, y = z.real, z.imag
     ax, ay = np.abs(x), np.abs(y)
     hi = np.maximum(ax, ay)
-    # (booleans viewed as uint8 and in-place arithmetic: no casting passes)
-    code: NDArray[np.uint8] = np.greater(ay, ax).view(np.uint8)
+    # the octant (4 sign(y) + 2 sign(x) + [|y| > |x|]) by Horner's rule on booleans viewed as
+    # uint8 (in-place arithmetic: no casting passes)
+    code: NDArray[np.uint8] = np.signbit(y).view(np.uint8)
+    code += code
+    code += np.signbit(x).view(np.uint8)
+    code += code
+    code += np.greater(ay, ax).view(np.uint8)
+    bounds = _bound_column(steps, ax.dtype, ax.ndim)
+    code *= np.uint8(bounds.shape[0] + 1)
     ratio = np.minimum(ax, ay, out=ax)
     with np.errstate(invalid='ignore', divide='ignore'):      # 0 / 0 at z = 0: no boundary
         ratio /= hi
-    code *= np.uint8(per)
-    sign = np.signbit(x)
-    bits = sign.view(np.uint8)
-    bits *= np.uint8(2 * per)
-    code += bits
-    np.signbit(y, out=sign)
-    bits *= np.uint8(4 * per)
-    code += bits
-    for bound in bounds:
-        code += np.greater(ratio, bound, out=sign).view(np.uint8)
+    # k: the boundaries below the ratio, all compared in one pass (one row per boundary)
+    code += np.greater(ratio, bounds).view(np.uint8).sum(axis=0, dtype=np.uint8)
     return code
+
+
+@functools.cache
+def _bound_column(steps: int, dtype: np.dtype[Any], ndim: int) -> NDArray[np.floating]:
+    """:func:`_octant_bounds` in ``dtype`` (how a Python float compares with such an array),
+    as a column ``(K, 1, ..., 1)`` against an ``ndim``-D ratio (read-only)."""
+    out = np.array(_octant_bounds(steps), dtype).reshape((-1,) + (1,) * ndim)
+    out.flags.writeable = False
+    return out
 
 
 @functools.cache

@@ -50,6 +50,34 @@ def test_spike_time_reproduces_the_phase_within_one_step(steps: int) -> None:
     assert np.all((sp.t >= 0) & (sp.t < steps))
 
 
+@pytest.mark.parametrize('steps', [4, 8, 16, 32, 60])
+def test_phase_codes_compare_the_ratio_with_each_boundary(steps: int) -> None:
+    """phase_codes counts the boundaries below min/max exactly as comparing the ratio with each
+    boundary as a Python float (in the input's precision), also at the boundaries' own values
+    and their neighbours, in every octant, 1-D and 2-D, both precisions, signed zeros."""
+    from hrn_vo_ros.core.spiking.neurons import _octant_bounds, phase_codes
+
+    def reference(z: np.ndarray) -> np.ndarray:
+        x, y = z.real, z.imag
+        ax, ay = np.abs(x), np.abs(y)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            ratio = np.minimum(ax, ay) / np.maximum(ax, ay)
+        k = sum((ratio > b).astype(np.int64) for b in _octant_bounds(steps))
+        octant = (ay > ax) + 2 * np.signbit(x) + 4 * np.signbit(y)
+        return (octant * (len(_octant_bounds(steps)) + 1) + k).astype(np.uint8)
+
+    for real, cplx in ((np.float32, np.complex64), (np.float64, np.complex128)):
+        r = [real(b) for b in _octant_bounds(steps)]
+        r = [v for b in r for v in (np.nextafter(b, real(0)), b, np.nextafter(b, real(2)))]
+        r = np.array(r + [0.0, 1.0], real)
+        vals = [complex(sx * a, sy * b) for v in r for sx in (1, -1) for sy in (1, -1)
+                for a, b in ((1.0, v), (v, 1.0), (3.0, float(real(3.0) * v)))]
+        z = np.array(vals + [complex(-0.0, 0.0), complex(0.0, -0.0), 0j], cplx)
+        np.testing.assert_array_equal(phase_codes(z, steps), reference(z))
+        z2 = z[:len(z) // 4 * 4].reshape(4, -1)
+        np.testing.assert_array_equal(phase_codes(z2, steps), reference(z2))
+
+
 @pytest.mark.parametrize('steps', [4, 8, 12, 16, 20, 32, 60, 63])
 def test_spike_step_is_the_rounded_phase(steps: int) -> None:
     """The octant-folded step (no arctan for 4 | T) is round(arg z T / 2 pi) mod T: on the
