@@ -29,7 +29,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.spiking.config import SpikingConfig
-from hrn_vo_ros.core.spiking.neurons import encode, rf_cycle_kicks, Spikes
+from hrn_vo_ros.core.spiking.neurons import (
+    encode_many,
+    phase_to_step,
+    rf_cycle_kicks,
+    Spikes,
+)
 from hrn_vo_ros.core.spiking.synapses import (
     ComplexSynapses,
     drive_many,
@@ -149,24 +154,24 @@ class SpikingCleanup:
         """
         return step_many([(self, u, state)])[0]
 
-    def _input(self, u: Complex) -> Spikes:
-        """Layer 1: the input neurons' spikes."""
-        u_sp = encode(u, self.cfg, wide=self._dc, wide_bits=self.cfg.dc_payload_bits)
+    def _input(self, u_sp: Spikes) -> Spikes:
+        """Layer 1: the input neurons' spikes ``u_sp`` (``encode`` of the input, the DC neurons
+        ``_dc`` on the wider payload): recorded and counted."""
         self.last_input = u_sp
         ci = self.counts['input']
         ci.spikes_in += u_sp.count
         ci.neuron_updates += self.size * self.cfg.steps_per_cycle
         return u_sp
 
-    def _pairs(self, drive: Complex, state: Spikes | None) -> Spikes:
-        """Layer 3's unit spikes at the phase of ``X p(a)`` (the phasor projection f), paired
-        with each state neuron's own previous spike: the state layer's two inputs."""
+    def _pairs(self, drive: Complex, steps: Int, state: Spikes | None) -> Spikes:
+        """Layer 3's unit spikes at the phase of ``X p(a)`` (the phasor projection f; ``steps``:
+        the spike steps of ``drive``), paired with each state neuron's own previous spike: the
+        state layer's two inputs."""
         cfg = self.cfg
         # (a constant full-scale payload 2^B - 1 in units of 2^-B, i.e. ~1)
         top = (1 << cfg.payload_bits) - 1
         unit_g = np.where(np.abs(drive) > 0.0, np.int64(top), np.int64(0))
-        f_sp = Spikes(encode(drive, cfg, fire_threshold=0.0).t, unit_g,
-                      -cfg.payload_bits, cfg.steps_per_cycle)
+        f_sp = Spikes(steps, unit_g, -cfg.payload_bits, cfg.steps_per_cycle)
         if state is None:
             prev_t, prev_g, prev_exp = f_sp.t, f_sp.g, f_sp.exp
         else:
@@ -233,19 +238,27 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
     Returns:
         Per item, ``(state, p)`` as :meth:`SpikingCleanup.step`.
     """
-    u_sps = [cl._input(u) for cl, u, _ in items]
+    if not items:
+        return []
+    cfg = items[0][0].cfg
+    u_sps = [cl._input(sp) for (cl, _, _), sp in zip(items, encode_many(
+        [u for _, u, _ in items], cfg, wides=[cl._dc for cl, _, _ in items],
+        wide_bits=cfg.dc_payload_bits), strict=True)]
     sims = drive_many([(cl._sim, u_sp, cl.counts['similarity'])
                        for (cl, _, _), u_sp in zip(items, u_sps, strict=True)])
     ps = [cl._p(u_sp, a.real) for (cl, _, _), u_sp, a in zip(items, u_sps, sims, strict=True)]
     # Similarity neurons fire at the reference phase (t = 0) with graded payload p.
-    p_sps = [encode(p.astype(np.complex128), cl.cfg, fire_threshold=0.0)
-             for (cl, _, _), p in zip(items, ps, strict=True)]
+    p_sps = encode_many([p.astype(np.complex128) for p in ps], cfg, fire_threshold=0.0)
     drives = drive_many([(cl._out, p_sp, cl.counts['cleanup'])
                          for (cl, _, _), p_sp in zip(items, p_sps, strict=True)])
-    pairs = [cl._pairs(d, st) for (cl, _, st), d in zip(items, drives, strict=True)]
+    # the cleanup neurons' spike steps (one pass for all factors' drives)
+    sizes = [d.size for d in drives]
+    steps = np.split(phase_to_step(np.concatenate(drives), cfg.steps_per_cycle),
+                     np.cumsum(sizes)[:-1])
+    pairs = [cl._pairs(d, t, st)
+             for (cl, _, st), d, t in zip(items, drives, steps, strict=True)]
     states: list[tuple[Int, Int] | None] = [None] * len(items)
-    cfg = items[0][0].cfg if items else None
-    if cfg is None or not cfg.quantised:
+    if not cfg.quantised:
         for (cl, _, _), pr in zip(items, pairs, strict=True):
             cl._mix_kicks(pr, None)
     else:
@@ -261,7 +274,6 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
         for i, n in enumerate(sizes):
             states[i] = (re[start:start + n], im[start:start + n])
             start += n
-    out = []
-    for (cl, _, _), pr, ri, p in zip(items, pairs, states, ps, strict=True):
-        out.append((encode(cl._mix_value(pr, ri), cl.cfg, fire_threshold=0.0), p))
-    return out
+    values = [cl._mix_value(pr, ri) for (cl, _, _), pr, ri in zip(items, pairs, states,
+                                                                      strict=True)]
+    return list(zip(encode_many(values, cfg, fire_threshold=0.0), ps, strict=True))

@@ -226,6 +226,50 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
     return Spikes(t, g, e, cfg.steps_per_cycle)
 
 
+def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float | None = None,
+                wides: list[NDArray[np.intp] | None] | None = None, wide_bits: int = 0
+                ) -> list[Spikes]:
+    """:func:`encode` of several populations, each with its own payload unit (and its own
+    ``wide`` neurons), the per-neuron steps run once on all their neurons (the same spikes).
+
+    Shapes:
+        zs: any each (one dtype for all); the spikes have the same shapes.
+    """
+    thr = cfg.fire_threshold if fire_threshold is None else fire_threshold
+    wl = [None] * len(zs) if wides is None else wides
+    if (len(zs) < 2 or cfg.payload_bits == 1 or thr > 0.0
+            or len({np.asarray(z).dtype for z in zs}) > 1):
+        return [encode(z, cfg, fire_threshold=thr, wide=w, wide_bits=wide_bits)
+                for z, w in zip(zs, wl, strict=True)]
+    flat = np.concatenate([np.ravel(z) for z in zs])
+    mag = np.abs(flat)
+    t = phase_to_step(flat, cfg.steps_per_cycle)
+    exps = []
+    start = 0
+    for z, w in zip(zs, wl, strict=True):
+        seg = mag[start:start + np.size(z)]
+        start += np.size(z)
+        if w is not None and w.size and wide_bits > cfg.payload_bits and seg.size:
+            rest = seg.copy()
+            rest[w] = 0.0
+            exps.append(max(payload_exponent(float(rest.max()), cfg.payload_bits),
+                            payload_exponent(float(seg[w].max()), wide_bits)))
+        else:
+            exps.append(payload_exponent(float(seg.max()) if seg.size else 0.0,
+                                         cfg.payload_bits))
+    sizes = [np.size(z) for z in zs]
+    e = np.repeat(-np.array(exps, np.int64), sizes)
+    g = np.where(mag > 0.0, np.rint(np.ldexp(mag, e)), 0.0).astype(np.int64)
+    out = []
+    start = 0
+    for z, n, ez in zip(zs, sizes, exps, strict=True):
+        shape = np.shape(z)
+        out.append(Spikes(t[start:start + n].reshape(shape), g[start:start + n].reshape(shape),
+                          ez, cfg.steps_per_cycle))
+        start += n
+    return out
+
+
 def rotation_constants(cfg: SpikingConfig) -> tuple[int, int]:
     """Fixed-point ``(c, s) = round((cos omega, sin omega) 2^D)`` of (RF-int)."""
     omega = 2.0 * np.pi / cfg.steps_per_cycle
