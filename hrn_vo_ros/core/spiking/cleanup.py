@@ -202,15 +202,19 @@ class SpikingCleanup:
         q = self._mix._q
         assert q is not None
         rows = np.arange(n)
+        shift = self._mix._shift
+        # a left shift is exact per kick (integers below 2^53): applied to each before the sum
+        unit = 2.0 ** shift if shift >= 0 else 1.0
         for j in range(2):
             if self.cfg.synapse == 'kick':
-                out[pairs.t[:, j], 0, rows] += q.re[0, j] * pairs.g[:, j]
-                out[pairs.t[:, j], 1, rows] += q.im[0, j] * pairs.g[:, j]
+                out[pairs.t[:, j], 0, rows] += (q.re[0, j] * pairs.g[:, j]) * unit
+                out[pairs.t[:, j], 1, rows] += (q.im[0, j] * pairs.g[:, j]) * unit
             else:
                 assert self._mix._delay is not None
                 arrive = (pairs.t[:, j] + self._mix._delay[0, j]) % steps
-                out[arrive, 0, rows] += q.re[0, j] * pairs.g[:, j]
-        scale_kicks_float(out, self._mix._shift)
+                out[arrive, 0, rows] += (q.re[0, j] * pairs.g[:, j]) * unit
+        if shift < 0:
+            scale_kicks_float(out, shift)
 
     def _mix_value(self, pairs: Spikes, ri: tuple[Int, Int] | None) -> Complex:
         """The state neurons' end-of-cycle value (float closed form, or the integer state)."""

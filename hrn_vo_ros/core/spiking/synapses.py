@@ -247,14 +247,16 @@ class ComplexSynapses:
                 slot = np.cumsum(per_step > 0) - 1
                 rows = np.zeros((present.size, spikes.g.size))
                 rows[slot[t], live] = spikes.g[live]
-                out[present] += (rows @ self._qt).reshape(present.size, 2, n_out)
+                k = rows @ self._qt
+                scale_kicks_float(k, self._shift)     # (a step without spikes stays 0)
+                out[present] = k.reshape(present.size, 2, n_out)
         else:
             assert self._delay is not None
             arrive = (spikes.t[None, :] + self._delay) % steps            # (n_out, n_in)
             idx = (arrive * n_out + np.arange(n_out)[:, None]).ravel()
             wts = (self._q.re * spikes.g[None, :]).ravel().astype(np.float64)
             out[:, 0] += np.rint(np.bincount(idx, wts, n_out * steps)).reshape(steps, n_out)
-        scale_kicks_float(out, self._shift)
+            scale_kicks_float(out, self._shift)
 
     def finish(self, re: Int, im: Int, spikes: Spikes) -> Complex:
         """The integer end-of-cycle state in value units."""
