@@ -246,8 +246,9 @@ class SparseTransforms:
         c.neuron_updates += neurons * self.cfg.steps_per_cycle
 
     def _taps(self, layer: TapLayer, x: C64, live: int, name: str) -> C64:
+        # (all taps, less those of the silent inputs: the same integer count)
         synops = (layer.synapses if live == x.size
-                  else int(layer.col_synops @ (x != 0)))
+                  else layer.synapses - int(layer.col_synops[np.flatnonzero(x == 0)].sum()))
         self._count(name, live, synops, layer.matrix.shape[0])
         return self.code.fire(np.asarray(layer.matrix @ x, np.complex64))
 
@@ -256,14 +257,22 @@ class SparseTransforms:
         spikes the first stage receives (its count is taken here)."""
         ax = self.axes[key]
         front = ax.to_front(np.asarray(x, np.complex64), axis)
-        live = int(np.count_nonzero(front)) if fire_input else self.code.last_count
-        silent: NDArray[np.intp] | None = None        # known in the stages' layout after stage 1
+        # the silent inputs in the stages' layout (from the input here; then from each fire)
+        silent: NDArray[np.intp] | None = None
+        if fire_input:
+            silent = np.flatnonzero(front == 0)
+            live = front.size - silent.size
+        else:
+            live = self.code.last_count
+            if live != front.size:
+                silent = np.flatnonzero(front == 0)
         spikes = synops = neurons = 0
         for i, s in enumerate(ax.stages):
             full = self._comps(key, i, front.shape[1])
             if live == front.size:
                 synops += self._total[key, i, front.shape[1]]
             elif silent is not None:
+                # (all synaptic operations less those of the silent inputs)
                 synops += self._total[key, i, front.shape[1]] - int(full[silent].sum())
             else:
                 synops += ax.spike_synops(front != 0, s)
