@@ -157,6 +157,8 @@ class ComplexSynapses:
     _nnz_col: Int = field(init=False)
     _shift: int = field(init=False, default=0)
     _qt: Real | None = field(init=False, default=None)
+    _qt32: NDArray[np.float32] | None = field(init=False, default=None)
+    _top: Int | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         w = np.asarray(self.weights, dtype=np.complex128)
@@ -190,6 +192,13 @@ class ComplexSynapses:
             # (re | im) mantissas per presynaptic neuron as float64 rows: kick products below
             self._qt = np.ascontiguousarray(
                 np.concatenate([self._q.re, self._q.im]).T.astype(np.float64))
+            # float32 holds every partial sum of the products exactly while each target's
+            # sum of |mantissa| x largest payload stays below 2^24
+            self._top = (np.full(w.shape[1], (1 << self.cfg.payload_bits) - 1, np.int64)
+                         if self.tops is None else np.asarray(self.tops, np.int64))
+            mags = np.abs(self._q.re) + np.abs(self._q.im)
+            if float((mags @ self._top.astype(np.float64)).max(initial=0)) < 2.0 ** 24:
+                self._qt32 = self._qt.astype(np.float32)
         per_syn = 2 if self.cfg.synapse == 'kick' else 1
         self._nnz_col = per_syn * np.count_nonzero(w, axis=0).astype(np.int64)
 
@@ -230,7 +239,9 @@ class ComplexSynapses:
         into ``out`` (zeros on entry; integers held as float64).
 
         ``synapse='kick'``: the spikes of each step that has any, as rows of payloads, times the
-        mantissa matrix (one product for re and im; integers below ``2^53``: exact).
+        mantissa matrix (one product for re and im; integers below ``2^53``: exact; in float32
+        when the payloads are within the largest ones the connection was sized for and its
+        sums stay below ``2^24``: exact as well).
 
         Shapes:
             spikes: (n_in,); out: (T, 2, n_out).
@@ -245,9 +256,16 @@ class ComplexSynapses:
                 per_step = np.bincount(t, minlength=steps)
                 present = np.flatnonzero(per_step)
                 slot = np.cumsum(per_step > 0) - 1
-                rows = np.zeros((present.size, spikes.g.size))
+                single = (self._qt32 is not None and self._top is not None
+                          and bool(np.all(spikes.g <= self._top)))
+                rows = np.zeros((present.size, spikes.g.size),
+                                np.float32 if single else np.float64)
                 rows[slot[t], live] = spikes.g[live]
-                k = rows @ self._qt
+                if single:
+                    assert self._qt32 is not None
+                    k = (rows @ self._qt32).astype(np.float64)
+                else:
+                    k = rows @ self._qt
                 scale_kicks_float(k, self._shift)     # (a step without spikes stays 0)
                 out[present] = k.reshape(present.size, 2, n_out)
         else:

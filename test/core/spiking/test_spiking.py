@@ -248,6 +248,32 @@ def test_complex_synapses_compute_the_matrix_product(synapse: str, precision: st
         np.testing.assert_allclose(k, np.round(k), atol=1e-9)
 
 
+@pytest.mark.parametrize('n_in', [30, 600])
+@pytest.mark.parametrize('payload_bits', [8, 12])
+def test_kicks_are_the_integer_sums(n_in: int, payload_bits: int) -> None:
+    """The kicks (float32 or float64 products of payloads and mantissas) are exactly the
+    integer sums of mantissa x payload per target and step, shifted into the state; also with
+    payloads above the ones the connection was sized for (``tops``)."""
+    rng = np.random.default_rng(n_in + payload_bits)
+    cfg = SpikingConfig(steps_per_cycle=32, payload_bits=payload_bits, max_fan_in=1024)
+    w = rng.uniform(0.2, 1.0, (40, n_in)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (40, n_in)))
+    for tops in (None, np.full(n_in, 3, np.int64)):
+        syn = ComplexSynapses(w, cfg, tops=tops)
+        q = syn._q
+        assert q is not None
+        t = rng.integers(0, 32, n_in)
+        g = rng.integers(0, 1 << payload_bits, n_in)
+        g[::7] = 0
+        re, im = syn.kicks(Spikes(t, g, -3, 32))
+        onehot = np.zeros((n_in, 32), np.int64)
+        onehot[np.arange(n_in), t] = g
+        for got, mant in ((re, q.re), (im, q.im)):
+            want = mant @ onehot
+            want = (want << syn._shift if syn._shift >= 0
+                    else (want + (1 << (-syn._shift - 1))) >> -syn._shift)
+            np.testing.assert_array_equal(got, want)
+
+
 # -- network level ---------------------------------------------------------------------------
 
 
