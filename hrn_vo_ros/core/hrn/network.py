@@ -426,17 +426,17 @@ class HRN:
                 prior_point: dict[str, float], n_on: int, rejected: bool, gyro: bool
                 ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
                            dict[str, Real], Any]:
-        """Quality, the hold of poor sparse frames, the state, and re-localisation when lost.
-        Returns (point, spread, peak, sims, map target)."""
+        """Quality, the hold of poor sparse or dense frames, the state, and re-localisation
+        when lost. Returns (point, spread, peak, sims, map target)."""
         c, eng, tr = self.cfg, self._engine, self.tracker
         target = eng.map_target(S, point)
         o1 = eng.overlap(target)
         q = tr.overlap_quality(o1)
         books = eng.books
-        if prior is not None and tr.sparse(n_on) and not rejected \
+        if prior is not None and tr.unusual(n_on) and not rejected \
                 and min(q, tr.sharpness(peak)) < c.tracking.degrade:
-            # a poor, sparse frame moves the states only if that clearly improves the
-            # match over the prediction: else they keep it (hot pixels, noise, a pause)
+            # a poor frame, sparse or dense, moves the states only if that clearly improves
+            # the match over the prediction: else they keep it (hot pixels, noise, a pause)
             pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
             t0 = eng.map_target(S, pp)
             o0 = eng.overlap(t0)

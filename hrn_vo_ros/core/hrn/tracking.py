@@ -10,9 +10,10 @@ re-localise while lost) stays in :mod:`.network`, which owns the engine.
 Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality(o)``,
 ``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
 ``bootstrap_due()``, ``remap_due(t_ns)``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
-``sparse(n_on)``, ``after_gap(dt_s)``, ``gap_search``, ``note_tracked(n_on, dt_s)`` and the
-attributes ``state``, ``quality``, ``overlap``, ``distinct``, ``relocalisations``,
-``held_frames``, ``established``, ``restarts``, ``lost_since``, ``interval``, ``gaps``.
+``sparse(n_on)``, ``unusual(n_on)``, ``after_gap(dt_s)``, ``gap_search``,
+``note_tracked(n_on, dt_s)`` and the attributes ``state``, ``quality``, ``overlap``,
+``distinct``, ``relocalisations``, ``held_frames``, ``established``, ``restarts``,
+``lost_since``, ``interval``, ``gaps``.
 """
 
 from __future__ import annotations
@@ -20,6 +21,9 @@ from __future__ import annotations
 import math
 
 from hrn_vo_ros.core.hrn.config import TrackingConfig
+
+#: Dense poor frames are held only among the first this many poor frames in a row.
+DENSE_RUN = 3
 
 
 class Tracker:
@@ -200,6 +204,15 @@ class Tracker:
         """Whether a frame of ``n_on`` on pixels is sparse (``hold_density`` of the running
         mean of tracked frames; never before the first tracked frame)."""
         return self.density is not None and n_on < self.cfg.hold_density * self.density
+
+    def unusual(self, n_on: int) -> bool:
+        """Whether a frame of ``n_on`` on pixels is sparse (:meth:`sparse`) or dense: more
+        than ``hold_dense`` times the running mean of tracked frames (0: never dense), and
+        among the first ``DENSE_RUN`` poor frames in a row (faster motion spreads a packet
+        over more pixels: a long run of dense frames is the motion, not a pause's noise)."""
+        dense = self.cfg.hold_dense
+        return self.sparse(n_on) or (dense > 0.0 and self.bad_run < DENSE_RUN
+                                     and self.density is not None and n_on > dense * self.density)
 
     def note_tracked(self, n_on: int, dt_s: float = 0.0) -> None:
         """A tracked frame's on-pixel count, and its interval ``dt_s`` since the previous

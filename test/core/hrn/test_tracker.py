@@ -8,7 +8,7 @@ import math
 import pytest
 
 from hrn_vo_ros.core.hrn.config import TrackingConfig
-from hrn_vo_ros.core.hrn.tracking import Tracker
+from hrn_vo_ros.core.hrn.tracking import DENSE_RUN, Tracker
 
 
 def states(tr: Tracker, qualities: list[float]) -> list[str]:
@@ -70,12 +70,20 @@ def test_distinctiveness_is_smoothed_and_mapped() -> None:
 
 
 def test_density_and_sparse_frames() -> None:
-    tr = Tracker(TrackingConfig(hold_density=0.5, ref_rate=0.1))
+    tr = Tracker(TrackingConfig(hold_density=0.5, hold_dense=0.0, ref_rate=0.1))
     assert not tr.sparse(0)                       # no tracked frame yet: nothing is sparse
     tr.note_tracked(1000)
     tr.note_tracked(0)                            # 1000 + 0.1 (0 - 1000) = 900
     assert tr.density == pytest.approx(900.0)
     assert tr.sparse(449) and not tr.sparse(450)
+    assert tr.unusual(449) and not tr.unusual(5000)             # hold_dense 0: never dense
+    tr = Tracker(TrackingConfig(hold_density=0.5, hold_dense=1.5))
+    assert not tr.unusual(10_000)                 # no tracked frame yet: nothing is dense
+    tr.note_tracked(1000)
+    assert tr.unusual(1501) and not tr.unusual(1500) and tr.unusual(499)
+    for _ in range(DENSE_RUN):    # a long run of poor frames: dense ones are the motion now
+        tr.update(0.0)
+    assert not tr.unusual(1501) and tr.unusual(499)
 
 
 def test_the_search_runs_on_the_first_lost_frame_and_every_nth() -> None:

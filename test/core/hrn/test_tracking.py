@@ -9,6 +9,7 @@ import pytest
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn.config import ResonatorConfig, TrackingConfig
 from hrn_vo_ros.core.hrn.network import HRN
+from hrn_vo_ros.core.hrn.tracking import DENSE_RUN
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.errors import ConfigError
@@ -292,6 +293,40 @@ def test_hot_pixel_frames_do_not_move_the_track(hold: bool) -> None:
     assert roll_dev < np.deg2rad(2.0) and shift_dev < 1.0, (roll_dev, shift_dev)
     assert hrn.tracker.held_frames >= 15
     back = run(hrn, scene, np.repeat(last[None], 10, axis=0), rng, t0=170)
+    assert back[-1].state == 'tracking'
+    assert abs(back[-1].r - last[2]) < np.deg2rad(1.0) and abs(back[-1].h - last[0]) < 0.5
+
+
+@pytest.mark.parametrize('dense', [1.5, 0.0])
+def test_a_burst_of_dense_noise_does_not_move_the_track(dense: float) -> None:
+    """A pause's packets gather background noise: frames with several times the tracked
+    frames' on pixels and poor quality keep the prediction (tracking.hold_dense; the first
+    DENSE_RUN poor ones in a row), as sparse frames do; without the rule the same frames move
+    the states away."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'tracking': {'relocalise': False, 'hold_dense': dense}})
+    poses = clean(150)
+    est = run(hrn, scene, poses, rng)
+    assert est[-1].state == 'tracking'
+    last = poses[-1]
+    mean_on = hrn.tracker.density
+    assert mean_on is not None
+    fill = 3.0 * mean_on / (72 * 96)            # three times the tracked frames' on pixels
+    burst = [(rng.random((72, 96)) < fill).astype(np.uint8) for _ in range(DENSE_RUN)]
+    assert all(np.count_nonzero(f) > dense * mean_on for f in burst)
+    out = [hrn.step(f, (150 + i) * 5_000_000) for i, f in enumerate(burst)]
+    assert out[-1].state != 'tracking'                          # flagged either way
+    peaks = [{k: hrn.readout_axis(k)[int(np.argmax(e.similarity[k]))] for k in 'hvr'}
+             for e in out]
+    shift_dev = max(max(abs(p['h'] - last[0]), abs(p['v'] - last[1])) for p in peaks)
+    roll_dev = max(abs(np.angle(np.exp(1j * (p['r'] - last[2])))) for p in peaks)
+    if not dense:
+        assert roll_dev > np.deg2rad(10.0) or shift_dev > 5.0, (roll_dev, shift_dev)
+        return
+    assert hrn.tracker.held_frames == len(burst)                # measured 0.47 px, 0.62 deg
+    assert roll_dev < np.deg2rad(1.5) and shift_dev < 0.8, (roll_dev, shift_dev)
+    back = run(hrn, scene, np.repeat(last[None], 10, axis=0), rng, t0=160)
     assert back[-1].state == 'tracking'
     assert abs(back[-1].r - last[2]) < np.deg2rad(1.0) and abs(back[-1].h - last[0]) < 0.5
 
