@@ -4,7 +4,8 @@ One (or a few) resonator iterations per event frame factorise the frame, encoded
 vector, into the camera's shift (h, v), roll (r) and optionally log zoom (z) relative to an
 allocentric map that the network learns as it goes. ``docs/model.md`` gives the model, its
 equations and every switch beyond the paper; the engines computing the equations are in
-:mod:`.fast` and :mod:`.dense` (protocol :class:`~hrn_vo_ros.core.hrn.engine.Engine`).
+:mod:`.fast` and :mod:`.dense` (protocol :class:`~hrn_vo_ros.core.hrn.engine.Engine`); the
+prediction step (gyro or velocity, the gyro's gate) in :mod:`.prediction`.
 
 Public API:
 
@@ -45,10 +46,11 @@ from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.hrn.dense import DenseEngine
 from hrn_vo_ros.core.hrn.engine import Engine, EngineFactory
 from hrn_vo_ros.core.hrn.fast import FastEngine
-from hrn_vo_ros.core.hrn.gyro import GyroBias, rotation_deg, rotation_of_shift, shift_of_rotation
+from hrn_vo_ros.core.hrn.gyro import GyroBias
 from hrn_vo_ros.core.hrn.hotpixels import HotPixelMask
 from hrn_vo_ros.core.hrn.logpolar import make_geometry
 from hrn_vo_ros.core.hrn.pose import ReportedPose
+from hrn_vo_ros.core.hrn.prediction import Prediction
 from hrn_vo_ros.core.hrn.shared import (
     centred_mod,
     Complex,
@@ -62,10 +64,10 @@ from hrn_vo_ros.core.hrn.shared import (
 from hrn_vo_ros.core.hrn.sphere import SphereWarp
 from hrn_vo_ros.core.hrn.tracking import Tracker
 from hrn_vo_ros.core.odometry.estimate import Estimate
-from hrn_vo_ros.errors import ConfigError, TrackingError
+from hrn_vo_ros.errors import ConfigError
 
 
-class HRN:
+class HRN(Prediction):
     """Hierarchical resonator odometry: one (or a few) resonator iterations per event frame.
 
     Args:
@@ -202,62 +204,6 @@ class HRN:
             point[name], spread[name], peak[name] = b.wrap(value), sd * step * b.unit, pk
         return point, spread, peak
 
-    def _check_gyro(self, gyro_delta: NDArray[Any]) -> NDArray[np.float64]:
-        g = np.asarray(gyro_delta, dtype=np.float64)
-        if g.shape != (3,) or not np.all(np.isfinite(g)):
-            raise TrackingError(f'gyro_delta must be 3 finite numbers (rad), got {gyro_delta!r}')
-        if self.cfg.focal_px <= 0.0:
-            raise ConfigError('focal_px must be > 0 for the IMU prediction: set it to the '
-                              'focal length in frame pixels (fx / downsample)')
-        return g
-
-    def _imu_predict(self, g: NDArray[np.float64]) -> dict[str, float]:
-        rb = self._engine.books['r']    # (core/hrn/gyro.py: the content angle's frame)
-        shift = shift_of_rotation(g, self.cfg.focal_px, self._point['r'] * rb.unit, rb.unit)
-        for name, delta in shift.items():
-            self._engine.shift(name, delta)
-        return shift
-
-    def _learn_bias(self, point: dict[str, float], predicted: dict[str, float],
-                    dt_s: float) -> None:
-        """A tracking frame's innovation, as a camera rotation, into the gyro bias."""
-        unit = self._engine.books['r'].unit
-        self.gyro_bias.update(rotation_of_shift(self._innovation(point, predicted),
-                                                self.cfg.focal_px, predicted['r'] * unit, unit),
-                              dt_s)
-
-    def _track_velocity(self, point: dict[str, float]) -> None:
-        """Update the smoothed h/v/r change per frame (cleanup.predict_smoothing)."""
-        prev, self._prev = self._prev, point
-        if prev is None:
-            return
-        a, books = self.cfg.cleanup.predict_smoothing, self._engine.books
-        step = {k: books[k].wrap(point[k] - prev[k]) for k in ('h', 'v', 'r')}
-        old = self._velocity
-        self._velocity = step if old is None else {
-            k: (1.0 - a) * old[k] + a * d for k, d in step.items()}
-
-    def _predict_velocity(self) -> dict[str, float]:
-        """Constant-velocity prediction: bind h, v, r with a fraction of their velocity;
-        returns the shifts (index units)."""
-        if self._velocity is None:
-            return {}
-        k = self.cfg.cleanup.predict_velocity
-        for name, d in self._velocity.items():
-            self._engine.shift(name, k * d)
-        return {name: k * d for name, d in self._velocity.items()}
-
-    def _innovation(self, point: dict[str, float], predicted: dict[str, float]
-                    ) -> dict[str, float]:
-        """Readout minus gyro prediction (h, v, r; index units, wrapped)."""
-        books = self._engine.books
-        return {k: books[k].wrap(point[k] - predicted[k]) for k in ('h', 'v', 'r')}
-
-    def _innovation_deg(self, point: dict[str, float], predicted: dict[str, float]) -> float:
-        """Largest angle between a readout and the gyro prediction (roll, pan/tilt), degrees."""
-        return rotation_deg(self._innovation(point, predicted), self.cfg.focal_px,
-                            self._engine.books['r'].unit)
-
     # -- public ----------------------------------------------------------------------------
 
     def step(self, image: NDArray[Any], t_ns: int, *,
@@ -356,23 +302,6 @@ class HRN:
                 return None
         return img, n_on, n_in
 
-    def _predict(self, first: bool, gyro_delta: NDArray[Any] | None
-                 ) -> tuple[dict[str, float] | None, dict[str, Any], dict[str, float]]:
-        """Apply the gyro (else the velocity) prediction: (gated prediction, states before it,
-        the shift applied)."""
-        c, eng = self.cfg, self._engine
-        predicted: dict[str, float] | None = None
-        held: dict[str, Any] = {}
-        shift: dict[str, float] = {}
-        if not first and gyro_delta is not None:       # the gyro, else the velocity predicts
-            shift = self._imu_predict(gyro_delta)
-            predicted = {k: self._point[k] + shift.get(k, 0.0) for k in self._point}
-            if c.imu.gate_deg > 0.0 or c.imu.max_correction_deg_s > 0.0:
-                held = {k: x.copy() for k, x in eng.state.items()}
-        elif c.cleanup.predict_velocity > 0.0:         # no-op until two valid frames
-            shift = self._predict_velocity()
-        return predicted, held, shift
-
     def _resonate(self, S: Any) -> tuple[dict[str, Real], dict[str, float], dict[str, float],
                                          dict[str, float]]:
         """The frame's resonator iterations and their readout: (sims, point, spread, peak)."""
@@ -389,37 +318,6 @@ class HRN:
             sims = {k: drive[k] for k in sims}
         point, spread, peak = self._readout(sims)
         return sims, point, spread, peak
-
-    def _gate_imu(self, point: dict[str, float], predicted: dict[str, float],
-                  held: dict[str, Any], sims: dict[str, Real], dt_s: float,
-                  gyro_deg: float
-                  ) -> tuple[dict[str, Real], dict[str, float], bool]:
-        """The innovation gate and the correction limit, against the gyro's prediction.
-
-        A readout beyond ``imu.gate_deg`` is replaced by the prediction (states restored); one
-        within the gate but beyond the limit ``imu.max_correction_deg_s * dt_s +
-        imu.max_correction_fraction * gyro_deg`` is cut back to the limit along its own
-        direction (the predicted states shifted by the cut difference).
-        Returns (sims, point, rejected)."""
-        c, eng = self.cfg, self._engine
-        books = eng.books
-        self.innovation_deg = self._innovation_deg(point, predicted)
-        if c.imu.gate_deg > 0.0 and self.innovation_deg > c.imu.gate_deg:
-            self.rejected_frames += 1
-            eng.state.update(held)
-            return eng.similarities(), {k: books[k].wrap(predicted[k]) for k in point}, True
-        limit = c.imu.max_correction_deg_s * dt_s + c.imu.max_correction_fraction * gyro_deg
-        if c.imu.max_correction_deg_s <= 0.0 or self.innovation_deg <= limit:
-            return sims, point, False
-        cut = limit / self.innovation_deg
-        eng.state.update(held)
-        moved = {}
-        for k in point:
-            d = books[k].wrap(point[k] - predicted[k]) * cut
-            eng.shift(k, d)
-            moved[k] = books[k].wrap(predicted[k] + d)
-        self.limited_frames += 1
-        return eng.similarities(), moved, False
 
     def _assess(self, S: Any, point: dict[str, float], spread: dict[str, float],
                 peak: dict[str, float], sims: dict[str, Real], prior: dict[str, Any] | None,
