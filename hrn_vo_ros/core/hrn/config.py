@@ -236,17 +236,18 @@ class TrackingConfig:
                             '(1: the frame alone)', lo=0.001, hi=1.0)
     hold_gain: float = param(0.15, 'a sparse or dense frame (hold_density, hold_dense) of '
                              'quality below degrade moves the states only if its quality '
-                             'exceeds that of the '
-                             'predicted pose by this much; else the states keep the prediction '
-                             '(hot-pixel and noise frames of a pause cannot move the track; '
-                             '-1: off)', lo=-1.0, hi=1.0)
+                             'exceeds that of the predicted pose by this much; else the states '
+                             'keep the prediction (hot-pixel and noise frames of a pause cannot '
+                             'move the track; -1: off)', lo=-1.0, hi=1.0)
     hold_density: float = param(0.5, 'a frame is sparse for hold_gain with fewer on pixels '
                                 'than this fraction of the running mean over tracked frames '
                                 '(a full frame of a fast jump keeps converging)', lo=0.0,
                                 hi=10.0)
     hold_dense: float = param(1.5, 'a frame is dense for hold_gain with more on pixels '
-                              'than this many times the running mean over tracked frames (the '
-                              'noise a packet gathers over a pause; 0: off)', lo=0.0, hi=1000.0)
+                              'than this many times the running mean over tracked frames, '
+                              'among the first 3 poor frames in a row (the noise a packet '
+                              'gathers over a pause; a longer run is faster motion; 0: off)',
+                              lo=0.0, hi=1000.0)
     gyro_poor: bool = param(False, 'with the gyro, a poor frame (lost, or degraded below '
                             '"degrade") leaves the states and the output at the gyro\'s '
                             'prediction instead of its own readout')
