@@ -44,14 +44,16 @@ LAST_INFO: list[str] = ['']
 
 
 def wait_for(what: str, check: Callable[[], bool], timeout: float = 60.0) -> None:
-    """Poll ``check`` until it holds; fail naming ``what`` (and the last topic info) after
-    ``timeout`` s."""
+    """Poll ``check`` until it holds; fail naming ``what`` (and the last topic info, the
+    nodes and topics the graph shows then) after ``timeout`` s."""
     end = time.monotonic() + timeout
     LAST_INFO[0] = ''
     while not check():
         if time.monotonic() > end:
+            nodes = ros2('node', 'list', '--no-daemon', '--spin-time', '2').stdout
             pytest.fail(f'timed out after {timeout:.0f} s waiting for {what}'
-                        + (f'; last ros2 topic info:\n{LAST_INFO[0]}' if LAST_INFO[0] else ''))
+                        + (f'; last ros2 topic info:\n{LAST_INFO[0]}' if LAST_INFO[0] else '')
+                        + f'\nnodes:\n{nodes}topics:\n{" ".join(sorted(topics()))}')
         time.sleep(0.5)
 
 
