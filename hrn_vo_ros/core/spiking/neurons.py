@@ -214,16 +214,24 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
         mean = float(mag[live].mean()) if live.any() else 0.0
         e = round(math.log2(mean)) if mean > 0.0 else 0
         return Spikes(t, live.astype(np.int64), e, cfg.steps_per_cycle)
+    e = _population_exponent(mag, cfg, wide, wide_bits)
+    g = np.where(live, np.rint(np.ldexp(mag, -e)), 0.0).astype(np.int64)
+    return Spikes(t, g, e, cfg.steps_per_cycle)
+
+
+def _population_exponent(mag: NDArray[np.floating], cfg: SpikingConfig,
+                         wide: NDArray[np.intp] | None, wide_bits: int) -> int:
+    """The payload unit exponent of one population of magnitudes ``mag`` (graded payloads):
+    its largest magnitude in ``payload_bits``, or, with ``wide`` neurons on ``wide_bits``,
+    the smallest unit that holds the others in ``payload_bits`` and those in ``wide_bits``
+    (:func:`encode`)."""
     if wide is not None and wide.size and wide_bits > cfg.payload_bits and mag.size:
         flat = mag.reshape(-1)
         rest = flat.copy()
         rest[wide] = 0.0
-        e = max(payload_exponent(float(rest.max()), cfg.payload_bits),
-                payload_exponent(float(flat[wide].max()), wide_bits))
-    else:
-        e = payload_exponent(float(mag.max()) if mag.size else 0.0, cfg.payload_bits)
-    g = np.where(live, np.rint(np.ldexp(mag, -e)), 0.0).astype(np.int64)
-    return Spikes(t, g, e, cfg.steps_per_cycle)
+        return max(payload_exponent(float(rest.max()), cfg.payload_bits),
+                   payload_exponent(float(flat[wide].max()), wide_bits))
+    return payload_exponent(float(mag.max()) if mag.size else 0.0, cfg.payload_bits)
 
 
 def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float | None = None,
@@ -244,30 +252,15 @@ def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float 
     flat = np.concatenate([np.ravel(z) for z in zs])
     mag = np.abs(flat)
     t = phase_to_step(flat, cfg.steps_per_cycle)
-    exps = []
-    start = 0
-    for z, w in zip(zs, wl, strict=True):
-        seg = mag[start:start + np.size(z)]
-        start += np.size(z)
-        if w is not None and w.size and wide_bits > cfg.payload_bits and seg.size:
-            rest = seg.copy()
-            rest[w] = 0.0
-            exps.append(max(payload_exponent(float(rest.max()), cfg.payload_bits),
-                            payload_exponent(float(seg[w].max()), wide_bits)))
-        else:
-            exps.append(payload_exponent(float(seg.max()) if seg.size else 0.0,
-                                         cfg.payload_bits))
     sizes = [np.size(z) for z in zs]
+    ends = np.cumsum(sizes)
+    exps = [_population_exponent(mag[end - n:end], cfg, w, wide_bits)
+            for n, end, w in zip(sizes, ends, wl, strict=True)]
     e = np.repeat(-np.array(exps, np.int64), sizes)
     g = np.where(mag > 0.0, np.rint(np.ldexp(mag, e)), 0.0).astype(np.int64)
-    out = []
-    start = 0
-    for z, n, ez in zip(zs, sizes, exps, strict=True):
-        shape = np.shape(z)
-        out.append(Spikes(t[start:start + n].reshape(shape), g[start:start + n].reshape(shape),
-                          ez, cfg.steps_per_cycle))
-        start += n
-    return out
+    return [Spikes(t[end - n:end].reshape(np.shape(z)), g[end - n:end].reshape(np.shape(z)),
+                   ez, cfg.steps_per_cycle)
+            for z, n, end, ez in zip(zs, sizes, ends, exps, strict=True)]
 
 
 def rotation_constants(cfg: SpikingConfig) -> tuple[int, int]:
