@@ -236,9 +236,8 @@ class HRN(Prediction):
         eng = self._engine
         first = not self._started
         if first:
-            eng.start(canvas, self.rng)
+            self._start_map(canvas, n_in)
             self._started = True
-            self._map_on = n_in
         dt_s = 0.0 if self._t_prev is None else max(t_ns - self._t_prev, 0) * 1e-9
         self._t_prev = t_ns
         if gyro_delta is not None:
@@ -384,12 +383,17 @@ class HRN(Prediction):
         must establish itself on it again."""
         out = self._emit(t_ns, self._point, spread, peak, sims, False, gyro=gyro)
         self._pose.restart()
-        self._engine.start(canvas, self.rng)
-        self._map_on = n_in
-        self._map_iteration = self.iteration
+        self._start_map(canvas, n_in)
         self._new_origin()
         self.tracker.restart()
         return out
+
+    def _start_map(self, canvas: Floats, n_in: int) -> None:
+        """A map from this frame (``n_in`` on pixels before the sphere warp): the engine's
+        start, and what ``map.block_iterations`` and ``_thin_map`` count from."""
+        self._engine.start(canvas, self.rng)
+        self._map_on = n_in
+        self._map_iteration = self.iteration
 
     def _keep_prior(self, prior: dict[str, Any], point: dict[str, float]
                     ) -> tuple[dict[str, float], dict[str, float], dict[str, Real]]:
