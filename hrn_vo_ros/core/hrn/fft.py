@@ -55,43 +55,45 @@ _PP = _load()
 BACKEND = 'pocketfft' if _PP is not None else 'scipy.fft'
 
 
-def _out(x: Arr, overwrite_x: bool) -> Arr | None:
-    return x if overwrite_x and x.dtype.kind == 'c' and x.flags.writeable else None
-
-
 def _c2c(x: Arr, axes: tuple[int, ...], forward: bool, workers: int, overwrite_x: bool) -> Arr:
-    x = np.asarray(x)
+    # (the hot path: one HRN step makes about 26 calls, so no more Python than needed here)
     if _PP is None:
         f = {(True, 1): _sfft.fft, (False, 1): _sfft.ifft,
              (True, 2): _sfft.fft2, (False, 2): _sfft.ifft2}[(forward, len(axes))]
         if len(axes) == 1:
             return np.asarray(f(x, axis=axes[0], workers=workers, overwrite_x=overwrite_x))
         return np.asarray(f(x, workers=workers, overwrite_x=overwrite_x))
-    if x.dtype.kind not in 'fc':
+    kind = x.dtype.kind
+    if kind not in 'fc':
         x = x.astype(np.float64)
-    return np.asarray(_PP.c2c(x, axes, forward, 0 if forward else 2, _out(x, overwrite_x),
-                              workers))
+    out = x if overwrite_x and kind == 'c' and x.flags.writeable else None
+    res: Arr = _PP.c2c(x, axes, forward, 0 if forward else 2, out, workers)
+    return res
 
 
 def fft(x: Arr, axis: int = -1, *, workers: int = 1, overwrite_x: bool = False) -> Arr:
     """1-D FFT along ``axis``."""
-    return _c2c(x, (axis % np.ndim(x),), True, workers, overwrite_x)
+    x = np.asarray(x)
+    return _c2c(x, (axis % x.ndim,), True, workers, overwrite_x)
 
 
 def ifft(x: Arr, axis: int = -1, *, workers: int = 1, overwrite_x: bool = False) -> Arr:
     """1-D inverse FFT along ``axis``."""
-    return _c2c(x, (axis % np.ndim(x),), False, workers, overwrite_x)
+    x = np.asarray(x)
+    return _c2c(x, (axis % x.ndim,), False, workers, overwrite_x)
 
 
 def fft2(x: Arr, *, workers: int = 1, overwrite_x: bool = False) -> Arr:
     """2-D FFT over the last two axes."""
-    n = np.ndim(x)
+    x = np.asarray(x)
+    n = x.ndim
     return _c2c(x, (n - 2, n - 1), True, workers, overwrite_x)
 
 
 def ifft2(x: Arr, *, workers: int = 1, overwrite_x: bool = False) -> Arr:
     """2-D inverse FFT over the last two axes."""
-    n = np.ndim(x)
+    x = np.asarray(x)
+    n = x.ndim
     return _c2c(x, (n - 2, n - 1), False, workers, overwrite_x)
 
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import functools
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +45,38 @@ from hrn_vo_ros.core.hrn import fft as hfft
 from hrn_vo_ros.errors import ConfigError
 
 Complex = NDArray[np.complex128]
+
+
+def _load_matvec() -> Any:
+    """scipy's CSR matrix-vector kernel if it reproduces ``@``, else None."""
+    try:
+        from scipy.sparse import _sparsetools
+        a = sp.csr_matrix(np.array([[1.0, 0.0, 2.5], [0.0, -1.0, 0.5]], np.complex64))
+        x = np.array([1 + 2j, 3 - 1j, -0.5j], np.complex64)
+        y = np.zeros(2, np.complex64)
+        _sparsetools.csr_matvec(2, 3, a.indptr, a.indices, a.data, x, y)
+        return _sparsetools.csr_matvec if np.array_equal(y, a @ x) else None
+    except Exception:          # any failure means: use the public API
+        return None
+
+
+# scipy.sparse's ``A @ x`` checks and dispatches for a few µs before it calls this kernel; the
+# HRN step makes six products (Λ, Λ' and T). Not public API: used only if it imports and
+# reproduces ``@`` (the same kernel, so the same results); otherwise ``@``.
+_CSR_MATVEC = _load_matvec()
+
+
+def csr_matvec(a: sp.csr_matrix, x: NDArray[Any]) -> NDArray[Any]:
+    """``a @ x`` for a CSR matrix and a contiguous vector of the matrix's dtype (else ``@``).
+
+    Shapes:
+        a: (M, N); x: (N,); returns (M,).
+    """
+    if _CSR_MATVEC is None or x.dtype != a.dtype or x.ndim != 1 or not x.flags.c_contiguous:
+        return np.asarray(a @ x)
+    y = np.zeros(a.shape[0], a.dtype)
+    _CSR_MATVEC(a.shape[0], a.shape[1], a.indptr, a.indices, a.data, x, y)
+    return y
 
 
 @dataclass(frozen=True, slots=True)
@@ -224,7 +257,8 @@ class LogPolarTransform:
 
     def lp_image(self, canvas: NDArray[np.floating]) -> NDArray[np.float64]:
         """The log-polar image ``T · canvas``. Shapes: (H_c, W_c) real → (n_rho, n_theta)."""
-        return np.asarray((self.T @ canvas.ravel()).reshape(self.lp_shape), np.float64)
+        x = canvas.ravel().astype(np.float64, copy=False)     # (as @ upcasts float32)
+        return csr_matvec(self.T, x).reshape(self.lp_shape)
 
     def encode_image_lp(self, canvas: NDArray[np.floating]) -> Complex:
         """``Λ s`` for ``s = fft2(canvas)``, computed directly: ``fft2_LP(T · canvas)``.
@@ -270,7 +304,7 @@ class LogPolarTransform:
         Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
         tr = self._single[1] if y.dtype == np.complex64 else self._Trc
         img = hfft.ifft(y, axis=1, workers=self.workers, overwrite_x=True).ravel()
-        out = hfft.fft2((tr @ img).reshape(self.cart_shape), workers=self.workers,
+        out = hfft.fft2(csr_matvec(tr, img).reshape(self.cart_shape), workers=self.workers,
                         overwrite_x=True)
         return np.asarray(out, y.dtype)
 
@@ -280,7 +314,7 @@ class LogPolarTransform:
         scratch array). complex64 in, complex64 out. Shapes: as forward."""
         t = self._single[0] if x.dtype == np.complex64 else self._Tc
         img = hfft.ifft2(x, workers=self.workers, overwrite_x=True).ravel()
-        out = hfft.fft((t @ img).reshape(self.lp_shape), axis=1, workers=self.workers,
+        out = hfft.fft(csr_matvec(t, img).reshape(self.lp_shape), axis=1, workers=self.workers,
                        overwrite_x=True)
         return np.asarray(out, x.dtype)
 
