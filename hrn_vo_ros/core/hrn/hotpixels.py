@@ -49,6 +49,6 @@ class HotPixelMask:
         hot = (f > self.on) & on
         f *= 1.0 - a
         f += a * on
-        n_hot = int(np.count_nonzero(hot))
-        self.masked = n_hot if 2 * n_hot <= int(np.count_nonzero(on)) else 0
+        n_hot = int(np.count_nonzero(hot))      # (usually none: then no count of on)
+        self.masked = n_hot if n_hot and 2 * n_hot <= int(np.count_nonzero(on)) else 0
         return np.where(hot, 0.0, img) if self.masked else img

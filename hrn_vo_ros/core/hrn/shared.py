@@ -311,13 +311,15 @@ def refine_exponent(x: NDArray[np.complexfloating], phases: Real, value: float,
     Shapes:
         x, phases: (n,); kernel: (41, n), :func:`refine_kernel` of ``phases`` and ``step``.
     """
-    t = value + step * _REFINE_GRID
+    grid = _REFINE_GRID         # t = value + step * grid, of which two entries are needed
     if kernel is None:
         kernel = refine_kernel(phases, step)
     sim = np.real(kernel @ (x * np.exp(-1j * value * phases)))
     j = int(np.argmax(sim))
-    if 0 < j < len(t) - 1:
+    t_j = value + step * float(grid[j])
+    if 0 < j < len(grid) - 1:
         den = float(sim[j - 1] - 2.0 * sim[j] + sim[j + 1])
         if den < 0.0:
-            return float(t[j] + 0.5 * float(sim[j - 1] - sim[j + 1]) / den * (t[1] - t[0]))
-    return float(t[j])
+            dt = (value + step * float(grid[1])) - (value + step * float(grid[0]))
+            return float(t_j + 0.5 * float(sim[j - 1] - sim[j + 1]) / den * dt)
+    return float(t_j)

@@ -136,16 +136,19 @@ class SphereWarp:
         if not (math.hypot(h, v) <= MAX_SWING_RAD * self.f and math.isfinite(r)):
             return np.asarray(image, dtype=np.float64)
         flat = np.flatnonzero(np.asarray(image) != 0)     # (a bool mask: 4x faster than on floats)
-        vals = np.take(np.ravel(image), flat).astype(np.float64)
+        vals = np.take(np.ravel(image), flat).astype(np.float64, copy=False)
         # splat on a frame padded by one pixel (no per-corner bounds checks), then crop; a
         # pixel moved further out than the padding is dropped
-        p = self._moved(flat, h, v, r)
-        p += 1.0
-        np.clip(p, 0.0, self._upper, out=p)
+        # (weight of the low/high corner, x/y, pixel); p: the high corner's, in place
+        g = np.empty((2, 2, flat.shape[0]))
+        p = g[1]
+        np.add(self._moved(flat, h, v, r), 1.0, out=p)
+        np.maximum(p, 0.0, out=p)                  # (as np.clip, which takes longer)
+        np.minimum(p, self._upper, out=p)
         p0 = np.floor(p)
         p -= p0                                    # fractional part, (x, y) rows
         base = (p0[1] * self._padded_width + p0[0]).astype(np.intp)
-        g = np.stack((1.0 - p, p))                 # (weight of the low/high corner, x/y, pixel)
+        np.subtract(1.0, p, out=g[0])
         wts = g[:, None, 1, :] * g[None, :, 0, :]  # (dy, dx, pixel)
         wts *= vals
         idx = base + self._corners                 # (dy, dx, pixel)
