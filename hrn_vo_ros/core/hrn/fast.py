@@ -90,6 +90,8 @@ class FastEngine:
         self._row_start = ends - np.asarray(lens, np.intp)
         self._row_count = np.asarray(lens, np.intp)
         self._row_len = np.repeat(np.asarray(lens, np.float64), lens)   # n of each entry
+        self._row_dec = np.concatenate([self._perm_dec[k] + sl.start for k, sl in
+                                        zip(self._rows, self._row_slices, strict=True)])
         # the frame and map spectra: single precision in the direct form (rounding ~1e-7 of
         # the map's own scale; the factor states and cleanups stay double)
         self._cdt: type[np.complexfloating] = np.complex64 if self._direct else np.complex128
@@ -107,6 +109,7 @@ class FastEngine:
         self.m0 = self.m
         self._mc = self.m                           # m̂* (changes once per frame)
         self._mvh = np.empty_like(self.m)           # m̂ ⊙ v̂ ⊙ ĥ scratch (Λ_w copies it)
+        self._q = np.empty((g.n_rho, g.n_theta), self._cdt)   # S ⊙ r̂* scratch (direct form)
         self._m0_src: Spectrum | None = None         # the m0 that _m0_scaled = μ2 m0 was made of
         self._m0_mu2 = 0.0
         self._m0_scaled = self.m0
@@ -206,8 +209,9 @@ class FastEngine:
         c *= self._row_len                          # n Re ifft a: the similarities
         mag = np.abs(c)
         top = np.maximum.reduceat(mag, starts)
-        low = 1e-9 * bounds                         # cleanup_weights' rounding-noise floor
-        if not (bounds > 0.0).all() or (np.fmin.reduceat(mag, starts) < low).any():
+        # no entry below cleanup_weights' rounding-noise floor 1e-9 |x_j| |a| (nor a blank
+        # input, bound 0): else its other branches, per factor
+        if not (np.fmin.reduceat(mag, starts) > 1e-9 * bounds).all():
             return tuple(self.update(k, x, a)
                          for k, x, a in zip(names, xs, inputs, strict=True))
         y = c * np.repeat(cfg.beta / top, self._row_count)
@@ -301,7 +305,10 @@ class FastEngine:
         h, v, r = st['h'], st['v'], st['r']
         dt = self._cdt
         hs, vs = h.astype(dt), v.astype(dt)
-        u = self.lp.reverse_theta(S_theta * r.conj().astype(dt)[None, :])   # Λ'(S ⊙ r̂*)
+        # (the products into scratch arrays: fresh 100 kB temporaries cost more than the
+        # products on a shared machine)
+        q = np.multiply(S_theta, r.conj().astype(dt)[None, :], out=self._q)
+        u = self.lp.reverse_theta(q)                             # Λ'(S ⊙ r̂*)
         u *= self._mc                                            # p̂ ⊙ m̂*
         mvh = np.multiply(self.m, vs[:, None], out=self._mvh)
         mvh *= hs[None, :]
@@ -311,8 +318,8 @@ class FastEngine:
         a_r = lt.sum(axis=0).astype(np.complex128)               # Σ_kρ S_w ⊙ l̂_w*
         # (broadcast products and sums: einsum takes 3-10x longer on complex64 at this size,
         # and BLAS gemv may go multi-threaded)
-        a_h = (u * vs.conj()[:, None]).sum(axis=0).astype(np.complex128)
-        a_v = (u * hs.conj()[None, :]).sum(axis=1).astype(np.complex128)
+        a_h = np.multiply(u, vs.conj()[:, None], out=self._mvh).sum(axis=0).astype(np.complex128)
+        a_v = np.multiply(u, hs.conj()[None, :], out=u).sum(axis=1).astype(np.complex128)
         self.inputs.update(h=a_h, v=a_v, r=a_r)
         if self._hv_rows:      # one cleanup for both (update() is no hook in the direct form)
             cleaned = self._clean_full(('h', 'v'), np.stack((a_h, a_v)))
@@ -327,8 +334,17 @@ class FastEngine:
         st['r'] = self.update('r', r, a_r)
 
     def similarities(self) -> dict[str, Real]:
+        st = self.state
+        if self._row_batch and len(st) == len(self._rows):    # h, v, r as one vector
+            norms = [float(np.linalg.norm(st[k])) for k in self._rows]
+            if all(norms):      # (as book_decode and normalised_similarity, elementwise)
+                c = np.concatenate([hfft.ifft(st[k]) for k in self._rows])[self._row_dec]
+                c *= self._row_len
+                scale = [self.col_norm[k] * n for k, n in zip(self._rows, norms, strict=True)]
+                sims = np.real(c) / np.repeat(scale, self._row_count)
+                return {k: sims[sl] for k, sl in zip(self._rows, self._row_slices, strict=True)}
         return {k: normalised_similarity(self.book_decode(k, x), x, self.col_norm[k])
-                for k, x in self.state.items()}
+                for k, x in st.items()}
 
     def input_projection(self, name: str) -> Complex:
         """``phasor(X X† a)`` of factor ``name``'s last cleanup input (readout.refine_input);
@@ -339,7 +355,8 @@ class FastEngine:
         return fhrr.phasor(a)
 
     def shift(self, name: str, delta: float) -> None:
-        self.state[name] = self.state[name] * fhrr.power(self.books[name].phases, delta)
+        # seed^delta = fhrr.power(phases, delta), from the cached 1j phases (the same product)
+        self.state[name] = self.state[name] * np.exp(self._jphases[name] * float(delta))
 
     def _to_map(self, S: Spectrum, point: dict[str, float]) -> Spectrum:
         jp, dt = self._jphases, self._cdt           # z0^a = exp((1j φ) a), as fhrr.power

@@ -115,6 +115,11 @@ class HRN(Prediction):
             self._blur = np.exp(-2.0 * math.pi ** 2 * sig ** 2 * (fx ** 2 + fy ** 2))
         self._blur32 = (self._blur.astype(np.float32) if self._blur is not None
                         and self._engine.blur_dtype is np.float32 else None)
+        # the single-precision canvas that blur places the frame on (assigning the frame casts
+        # it as astype did), and where the frame goes
+        self._canvas32 = self._canvas.astype(np.float32) if self._blur32 is not None else None
+        ox, oy = self.geometry.offset
+        self._frame_at = np.s_[oy:oy + c.height, ox:ox + c.width]
         self.tracker = Tracker(c.tracking)     # quality and state (core/hrn/tracking.py)
         self.gyro_bias = GyroBias(c.imu.bias_memory_s, c.imu.bias_prior_s,
                                   math.radians(c.imu.max_bias_deg_s))
@@ -163,16 +168,16 @@ class HRN(Prediction):
     # -- helpers ---------------------------------------------------------------------------
 
     def _place(self, image: NDArray[Any]) -> Floats:
-        g = self.geometry
-        ox, oy = g.offset
-        self._canvas[oy:oy + g.height, ox:ox + g.width] = image
+        if self._blur32 is not None and self._canvas32 is not None:
+            # G * I on the (toroidal) canvas, i.e. s = (Φ I) ⊙ ĝ for DFT codebooks, in single
+            # precision where the engine rounds to it
+            self._canvas32[self._frame_at] = image
+            spec = hfft.rfft2(self._canvas32)
+            spec *= self._blur32
+            return np.asarray(hfft.irfft2(spec, self._canvas32.shape))
+        self._canvas[self._frame_at] = image
         if self._blur is None:
             return self._canvas
-        # G * I on the (toroidal) canvas, i.e. s = (Φ I) ⊙ ĝ for DFT codebooks
-        if self._blur32 is not None:        # single precision where the engine rounds to it
-            spec = hfft.rfft2(self._canvas.astype(np.float32))
-            spec *= self._blur32
-            return np.asarray(hfft.irfft2(spec, self._canvas.shape))
         spec = hfft.rfft2(self._canvas)
         spec *= self._blur
         return np.asarray(hfft.irfft2(spec, self._canvas.shape), np.float64)
