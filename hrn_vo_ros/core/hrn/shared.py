@@ -274,14 +274,14 @@ def population_readout(sim: Real, half_window: int, circular: bool
         sim: (K,).
     """
     n = sim.shape[0]
-    k = int(np.argmax(sim))
+    k = int(sim.argmax())
     idx = np.arange(k - half_window, k + half_window + 1)
     if circular:
-        w = sim[np.mod(idx, n)]
+        w = sim.take(idx, mode='wrap')          # sim[idx mod n]
     else:
         idx = idx[(idx >= 0) & (idx < n)]
         w = sim[idx]
-    w = np.maximum(w, 0.0)
+    np.maximum(w, 0.0, out=w)                   # (w is a copy)
     total = float(w.sum())
     if total <= 0.0:
         return float(k), 0.0, float(sim[k])
