@@ -58,6 +58,7 @@ import scipy.fft as sfft
 from hrn_vo_ros.core.configbase import param, validate
 from hrn_vo_ros.core.events.frames import check_event_frame
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.shared import map_block
 from hrn_vo_ros.core.hrn.sphere import SphereWarp
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.errors import TrackingError
@@ -351,14 +352,15 @@ def config_like(rcfg: ResonatorConfig) -> BaselineConfig:
     """Baseline settings matching an HRN config: frame size, map anchoring, sphere correction
     and scale factor.
 
-    The HRN blocks its map for ``map.block_iterations`` resonator iterations, the baseline for
-    that many frames: the count is divided by ``cleanup.iterations_per_frame`` so that both
-    start learning their maps on the same frame.
+    The HRN blocks its map for ``map.block_iterations`` resonator iterations (``map_block``:
+    ``imu.block_iterations`` with the gyro), the baseline for that many frames: the count is
+    divided by ``cleanup.iterations_per_frame`` so that both start learning their maps on the
+    same frame.
     """
     per_frame = rcfg.cleanup.iterations_per_frame       # >= 1 (validated)
     return BaselineConfig(width=rcfg.width, height=rcfg.height, mu1=rcfg.map.mu1,
                           mu2=rcfg.map.mu2,
-                          block_iterations=rcfg.map.block_iterations // per_frame,
+                          block_iterations=map_block(rcfg) // per_frame,
                           learn_map=rcfg.map.learn, sphere=rcfg.sphere.enabled,
                           focal_px=rcfg.focal_px, scale=rcfg.scale.enabled,
                           max_log_scale=rcfg.scale.max_log_scale, max_fill=rcfg.max_fill)

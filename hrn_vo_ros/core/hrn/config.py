@@ -150,6 +150,10 @@ class ImuConfig:
     mu1: float = param(0.0, 'weight of the previous map while the IMU prediction is on (0: '
                        'map.mu1); with the gyro the map can average over more frames',
                        lo=0.0, hi=1.0)
+    block_iterations: int = param(-1, 'map.block_iterations while the IMU prediction is on '
+                                  '(-1: map.block_iterations): the gyro carries the first '
+                                  'frames, so its map can wait for settled states longer',
+                                  lo=-1, hi=10_000_000)
     gate_deg: float = param(0.0, 'innovation gate (0: off): a frame whose readout differs from '
                             'the gyro prediction by more than this angle (roll, or pan/tilt '
                             'through focal_px) is rejected: the states keep the prediction '

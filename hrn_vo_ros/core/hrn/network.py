@@ -55,6 +55,7 @@ from hrn_vo_ros.core.hrn.shared import (
     centred_mod,
     Complex,
     Floats,
+    map_block,
     map_mu1,
     population_readout,
     Real,
@@ -267,7 +268,7 @@ class HRN(Prediction):
             gyro_deg = math.degrees(float(np.linalg.norm(gyro_delta)))
             sims, point, rejected = self._gate_imu(point, predicted, held, sims, dt_s,
                                                    gyro_deg)
-        learn = (c.map.learn and self.iteration - self._map_iteration > c.map.block_iterations
+        learn = (c.map.learn and self.iteration - self._map_iteration > map_block(c)
                  and not rejected)
         target: Any = None
         if c.tracking.enabled and not first:
@@ -380,7 +381,7 @@ class HRN(Prediction):
         than ``tracking.bootstrap_fill`` times its on pixels (both counted before the sphere
         warp)."""
         c, fill = self.cfg, self.cfg.tracking.bootstrap_fill
-        return (fill > 0.0 and self.iteration - self._map_iteration <= c.map.block_iterations
+        return (fill > 0.0 and self.iteration - self._map_iteration <= map_block(c)
                 and n_in > fill * self._map_on)
 
     def _restart(self, canvas: Floats, t_ns: int, n_in: int, spread: dict[str, float],
@@ -399,7 +400,7 @@ class HRN(Prediction):
 
     def _start_map(self, canvas: Floats, n_in: int) -> None:
         """A map from this frame (``n_in`` on pixels before the sphere warp): the engine's
-        start, and what ``map.block_iterations`` and ``_thin_map`` count from."""
+        start, and what the map's update block (``map_block``) and ``_thin_map`` count from."""
         self._engine.start(canvas, self.rng)
         self._map_on = n_in
         self._map_iteration = self.iteration

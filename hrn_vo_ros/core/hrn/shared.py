@@ -1,8 +1,8 @@
 """Pieces shared by the engines, the network and the spiking backend.
 
-The state update (:func:`state_gamma`, :func:`blend_state`), the map weight
-(:func:`map_mu1`), the cleanup nonlinearity p (:func:`cleanup_weights`), the 1-D FPE factor
-codebooks (:class:`FactorCodebook`, :func:`factor_codebooks`), the readout
+The state update (:func:`state_gamma`, :func:`blend_state`), the map weight and its start
+(:func:`map_mu1`, :func:`map_block`), the cleanup nonlinearity p (:func:`cleanup_weights`),
+the 1-D FPE factor codebooks (:class:`FactorCodebook`, :func:`factor_codebooks`), the readout
 (:func:`normalised_similarity`, :func:`population_readout`, :func:`refine_kernel`,
 :func:`refine_exponent`) and the array type names. The equations are in ``docs/model.md``.
 """
@@ -38,6 +38,14 @@ def state_gamma(cfg: ResonatorConfig) -> float:
     if cfg.imu.enabled and cfg.imu.gamma > 0.0:
         return cfg.imu.gamma
     return cfg.cleanup.gamma
+
+
+def map_block(cfg: ResonatorConfig) -> int:
+    """Resonator iterations of a new map without map updates in use: ``imu.block_iterations``
+    while the IMU prediction is on (if set, >= 0), ``map.block_iterations`` otherwise."""
+    if cfg.imu.enabled and cfg.imu.block_iterations >= 0:
+        return cfg.imu.block_iterations
+    return cfg.map.block_iterations
 
 
 def map_mu1(cfg: ResonatorConfig) -> float:

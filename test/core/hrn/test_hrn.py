@@ -14,6 +14,7 @@ from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.shared import (
     blend_state,
     cleanup_weights,
+    map_block,
     map_mu1,
     population_readout,
     refine_exponent,
@@ -375,6 +376,30 @@ def test_the_map_learns_with_imu_mu1_while_the_gyro_predicts() -> None:
     # without the IMU, imu.mu1 is not used
     np.testing.assert_array_equal(final_map({'map': {'mu1': 0.9}, 'imu': {'mu1': 0.6}}, imu=False),
                                   final_map({'map': {'mu1': 0.9}}, imu=False))
+
+
+@pytest.mark.parametrize(('imu', 'imu_block', 'first'), [(False, 4, 5), (True, 4, 2),
+                                                          (True, -1, 5), (True, 0, 0)])
+def test_imu_block_iterations_replaces_the_map_block_only_with_the_imu_on(
+        imu: bool, imu_block: int, first: int) -> None:
+    """2 iterations per frame, frame 0 included (it starts the map, then iterates): after frame
+    k the map has seen 2 (k + 1) iterations, and the first update comes on the first frame past
+    the block in use (map.block_iterations 10 -> frame 5; imu.block_iterations 4 -> frame 2;
+    0 -> frame 0; -1: the map's)."""
+    cfg = {'map': {'block_iterations': 10}, 'cleanup': {'iterations_per_frame': 2},
+           'imu': {'enabled': imu, 'block_iterations': imu_block}, 'focal_px': FOCAL}
+    assert map_block(from_dict(ResonatorConfig, cfg)) == (imu_block if imu and imu_block >= 0
+                                                           else 10)
+    hrn = make(cfg)
+    traj = trajectory(10, amp_xy=1.0)
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    updated = []
+    for i, pose in enumerate(traj):
+        g = gyro_between(traj[i - 1], pose) if imu and i else None
+        e = hrn.step(event_frame(scene, tuple(pose), rng), i * 5_000_000, gyro_delta=g)
+        updated.append(e.map_updated)
+    assert updated.index(True) == first
 
 
 def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
