@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+import functools
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,7 +33,7 @@ from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
     encode_many,
     phase_to_step,
-    rf_cycle_kicks,
+    rf_cycle_populations,
     Spikes,
 )
 from hrn_vo_ros.core.spiking.synapses import (
@@ -266,18 +267,12 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
         for (cl, _, _), pr in zip(items, pairs, strict=True):
             cl._mix_kicks(pr, None)
     else:
-        sizes = [cl.size for cl, _, _ in items]
-        kicks = np.zeros((cfg.steps_per_cycle, 2, sum(sizes)))
-        start = 0
-        for (cl, _, _), pr, n in zip(items, pairs, sizes, strict=True):
-            cl._mix_kicks(pr, kicks[:, :, start:start + n])
-            start += n
-        re, im, sat = rf_cycle_kicks(kicks, cfg)
+        per_population, sat = rf_cycle_populations(
+            [functools.partial(cl._mix_kicks, pr) for (cl, _, _), pr in zip(items, pairs,
+                                                                              strict=True)],
+            [cl.size for cl, _, _ in items], cfg)
         items[0][0].counts['state'].saturated += sat
-        start = 0
-        for i, n in enumerate(sizes):
-            states[i] = (re[start:start + n], im[start:start + n])
-            start += n
+        states[:] = per_population
     values = [cl._mix_value(pr, ri) for (cl, _, _), pr, ri in zip(items, pairs, states,
                                                                       strict=True)]
     return list(zip(encode_many(values, cfg, fire_threshold=0.0), ps, strict=True))

@@ -40,6 +40,7 @@ operations per layer.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import functools
 import math
@@ -337,6 +338,23 @@ def rf_cycle_kicks(kicks: Real, cfg: SpikingConfig) -> tuple[Int, Int, int]:
             np.clip(re, -bound, bound, out=re)
             np.clip(im, -bound, bound, out=im)
     return re, im, saturated
+
+
+def rf_cycle_populations(fills: list[Callable[[Real], None]], sizes: list[int],
+                         cfg: SpikingConfig) -> tuple[list[tuple[Int, Int]], int]:
+    """:func:`rf_cycle_kicks` of several populations as one (the same per-neuron arithmetic,
+    one step loop): ``fills[i]`` writes population ``i``'s kicks into its ``(T, 2, sizes[i])``
+    slice (zeros on entry). Returns each population's ``(re, im)`` and the saturations of all.
+
+    Shapes:
+        returns re, im: (sizes[i],) int64 each.
+    """
+    kicks = np.zeros((cfg.steps_per_cycle, 2, sum(sizes)))
+    ends = np.cumsum(sizes, dtype=np.intp)
+    for fill, n, end in zip(fills, sizes, ends, strict=True):
+        fill(kicks[:, :, end - n:end])
+    re, im, sat = rf_cycle_kicks(kicks, cfg)
+    return [(re[end - n:end], im[end - n:end]) for n, end in zip(sizes, ends, strict=True)], sat
 
 
 def _rf_loop_unchecked(kicks: Real, c: int, s: int, shift: int, half: int

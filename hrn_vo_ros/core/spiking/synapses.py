@@ -22,13 +22,19 @@ exactly once, at step ``(t_j + d) mod T`` ([design]: the emulation integrates th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import math
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.spiking.config import SpikingConfig
-from hrn_vo_ros.core.spiking.neurons import phase_to_step, rf_cycle_int, rf_cycle_kicks, Spikes
+from hrn_vo_ros.core.spiking.neurons import (
+    phase_to_step,
+    rf_cycle_int,
+    rf_cycle_populations,
+    Spikes,
+)
 from hrn_vo_ros.errors import ConfigError
 
 Complex = NDArray[np.complex128]
@@ -297,20 +303,14 @@ def drive_many(jobs: list[tuple[ComplexSynapses, Spikes, LayerCounts | None]]) -
             ints.append(i)
     if ints:
         cfg = jobs[ints[0]][0].cfg
-        sizes = [jobs[i][0]._eff.shape[0] for i in ints]
-        kicks = np.zeros((cfg.steps_per_cycle, 2, sum(sizes)))
-        start = 0
-        for i, n in zip(ints, sizes, strict=True):
-            jobs[i][0].kicks_into(jobs[i][1], kicks[:, :, start:start + n])
-            start += n
-        re, im, sat = rf_cycle_kicks(kicks, cfg)
-        start = 0
-        for i, n in zip(ints, sizes, strict=True):
+        states, sat = rf_cycle_populations(
+            [functools.partial(jobs[i][0].kicks_into, jobs[i][1]) for i in ints],
+            [jobs[i][0]._eff.shape[0] for i in ints], cfg)
+        for i, (re, im) in zip(ints, states, strict=True):
             syn, sp, counts = jobs[i]
             if counts is not None:
                 counts.saturated += sat if len(ints) == 1 else 0
-            out[i] = syn.finish(re[start:start + n], im[start:start + n], sp)
-            start += n
+            out[i] = syn.finish(re, im, sp)
     return [o for o in out if o is not None]
 
 
