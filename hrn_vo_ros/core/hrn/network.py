@@ -99,7 +99,9 @@ class HRN(Prediction):
             self._engine = DenseEngine(c, self.geometry, rng, dense_dtype)
         self.factors: tuple[str, ...] = tuple(self._engine.books)
         self._kernels: dict[str, Complex] = {}      # readout.refine kernels per factor
-        self._steps: dict[str, tuple[float, float]] = {}    # (first entry, step) per factor
+        # (first entry, entry step) of each factor's codebook, for the readout
+        self._steps = {k: (float(b.values[0]), float(b.values[1] - b.values[0])
+                           if len(b.values) > 1 else 1.0) for k, b in self._engine.books.items()}
         self._refine_input = set(c.readout.input_factors)
         self._canvas = np.zeros((self.geometry.canvas_height, self.geometry.canvas_width))
         self._sphere = (SphereWarp(c.width, c.height, c.focal_px) if c.sphere.enabled
@@ -200,9 +202,6 @@ class HRN(Prediction):
         for name, sim in sims.items():
             b = self._engine.books[name]
             idx, sd, pk = population_readout(sim, hw, b.period is not None)
-            if name not in self._steps:         # the codebook's first entry and entry step
-                self._steps[name] = (float(b.values[0]), float(b.values[1] - b.values[0])
-                                     if len(b.values) > 1 else 1.0)
             first, step = self._steps[name]
             value = first + idx * step
             if self.cfg.readout.refine:
