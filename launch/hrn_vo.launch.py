@@ -16,6 +16,8 @@ the namespaced nodes.
 Machines without ``launch`` start the same graph with ``hrn-vo demo`` (hrn_vo_ros/cli/graph.py).
 """
 
+import atexit
+import contextlib
 import os
 import tempfile
 
@@ -73,7 +75,14 @@ def _node_params(config, name, namespace):
     with tempfile.NamedTemporaryFile('w', prefix=f'hrn_vo_{name}_', suffix='.yaml',
                                      delete=False) as out:
         yaml.safe_dump({full: {'ros__parameters': params}}, out)
+    # the nodes read it at start-up; the launch process removes it when it exits
+    atexit.register(_remove, out.name)
     return out.name
+
+
+def _remove(path):
+    with contextlib.suppress(OSError):
+        os.unlink(path)
 
 
 def _nodes(context, *args, **kwargs):

@@ -58,11 +58,12 @@ def wait_for(what: str, check: Callable[[], bool], timeout: float = 60.0) -> Non
 
 
 @contextlib.contextmanager
-def started(args: list[str], log: Path) -> Iterator[subprocess.Popen[bytes]]:
+def started(args: list[str], log: Path, env: dict[str, str] | None = None
+            ) -> Iterator[subprocess.Popen[bytes]]:
     """A process (its own process group) that is interrupted, then killed, on exit."""
     with log.open('wb') as out:
         proc = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
-                                start_new_session=True)
+                                start_new_session=True, env=env)
         try:
             yield proc
         finally:
@@ -178,7 +179,9 @@ def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Pat
     log = tmp_path / 'launch.log'
     args = ['ros2', 'launch', 'hrn_vo_ros', 'hrn_vo.launch.py', 'namespace:=cam0',
             'use_sim_time:=true']
-    with started(args, log) as proc:
+    tmp = tmp_path / 'tmp'   # where the launch file writes the namespaced parameter files
+    tmp.mkdir()
+    with started(args, log, dict(os.environ, TMPDIR=str(tmp))) as proc:
         wait_for('the namespaced packetizer', lambda: param('/cam0/packetizer_node',
                                                              'sensor_width')
                  == 'Integer value is: 240')  # from the config's packetizer_node section
@@ -193,3 +196,6 @@ def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Pat
         wait_for('the namespaced pose topic', lambda: '/cam0/resonator_node/pose' in topics())
         assert '/packetizer_node/frames' not in topics()
         assert proc.poll() is None, log.read_text()
+        assert len(list(tmp.glob('hrn_vo_*.yaml'))) == 2
+    # the launch process removed its own files when it stopped (launch_ros's are its own)
+    assert not list(tmp.glob('hrn_vo_*.yaml')), log.read_text()
