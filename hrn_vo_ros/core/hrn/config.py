@@ -252,9 +252,11 @@ class TrackingConfig:
                               'among the first 3 poor frames in a row (the noise a packet '
                               'gathers over a pause; a longer run is faster motion; 0: off)',
                               lo=0.0, hi=1000.0)
-    gyro_poor: bool = param(False, 'with the gyro, a poor frame (lost, or degraded below '
-                            '"degrade") leaves the states and the output at the gyro\'s '
-                            'prediction instead of its own readout')
+    gyro_poor: bool = param(False, 'the gyro carries the states (rotation): a poor frame '
+                            '(lost, or degraded below "degrade") leaves the states and the '
+                            "output at the gyro's prediction instead of its own readout; off "
+                            '(the gyro misses the translation), poor frames hold the output as '
+                            'without the gyro')
     bootstrap_frames: int = param(12, 'until the map has been tracked (a frame after its first '
                                   'one tracking), this many consecutive poor frames start a new '
                                   'map from the current frame, at the pose the output reports '

@@ -359,7 +359,8 @@ class HRN(Prediction):
             # a search that is not accepted leaves the states alone when the gyro carries them
             # or when a gap, not a loss, armed it (the states may still hold the pose)
             gap, q_frame = tr.gap_search, tr.quality
-            kept = {k: x.copy() for k, x in eng.state.items()} if gyro or gap else None
+            kept = ({k: x.copy() for k, x in eng.state.items()}
+                    if (gyro and c.tracking.gyro_poor) or gap else None)
             near = prior_point if gyro and c.imu.gate_deg > 0.0 else None
             found = self._relocalise(S, point, near)
             if found is not None:
@@ -473,7 +474,8 @@ class HRN(Prediction):
               gyro: bool = False) -> Estimate:
         # the output: the last tracked pose while lost or on a poor degraded frame, unless
         # the gyro carried the states (its prediction is a measurement of the motion)
-        out = self._pose.update(point, self._engine.books, hold=not gyro and self.tracker.poor,
+        carried = gyro and self.cfg.tracking.gyro_poor
+        out = self._pose.update(point, self._engine.books, hold=not carried and self.tracker.poor,
                                 tracking=self.state == 'tracking')
         est = Estimate(t_ns=int(t_ns), h=out['h'], v=out['v'], r=out['r'],
                        z=out['z'], confidence=peak, spread=spread,

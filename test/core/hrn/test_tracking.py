@@ -526,14 +526,18 @@ def test_hot_pixels_are_masked_and_moving_edges_are_not(mask: bool) -> None:
     assert np.median(masked) == 0 and max(masked) <= 2, max(masked)
 
 
-def test_with_the_gyro_poor_frames_follow_the_prediction() -> None:
-    """Frames the map cannot place (noise) while the gyro reports a roll: the output follows
-    the gyro instead of holding the last tracked pose."""
+@pytest.mark.parametrize('carried', [True, False])
+def test_with_the_gyro_poor_frames_follow_the_prediction(carried: bool) -> None:
+    """Frames the map cannot place (noise) while the gyro reports a roll: where the gyro
+    carries the states (``tracking.gyro_poor``, rotation) the output follows it instead of
+    holding the last tracked pose; where it does not (translation: the gyro misses the
+    translation) poor frames hold the output, as without the gyro."""
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
     hrn = make({'focal_px': 80.0, 'imu': {'enabled': True, 'gate_deg': 5.0,      # as shipped
                                           'max_correction_deg_s': 5.0,
-                                          'max_correction_fraction': 0.2}})
+                                          'max_correction_fraction': 0.2},
+                'tracking': {'gyro_poor': carried}})
     poses = clean(150)
     run(hrn, scene, poses, rng)
     last = hrn.step(event_frame(scene, tuple(poses[-1]), rng), 150 * 5_000_000,
@@ -542,16 +546,22 @@ def test_with_the_gyro_poor_frames_follow_the_prediction() -> None:
     out = [hrn.step((rng.random((72, 96)) < 0.04).astype(np.uint8), (151 + i) * 5_000_000,
                     gyro_delta=np.array([0.0, 0.0, step])) for i in range(12)]
     assert any(e.state != 'tracking' for e in out), [e.state for e in out]
-    assert out[-1].r - last.r == pytest.approx(12 * step, abs=np.deg2rad(1.0)), \
-        np.rad2deg(out[-1].r - last.r)
+    if carried:
+        assert out[-1].r - last.r == pytest.approx(12 * step, abs=np.deg2rad(1.0)), \
+            np.rad2deg(out[-1].r - last.r)
+    else:
+        # every poor frame reports the last tracked pose (12 deg of gyro roll not followed)
+        assert last.state == 'tracking'
+        assert all((e.h, e.v, e.r) == (last.h, last.v, last.r) for e in out), \
+            [(e.state, np.rad2deg(e.r - last.r)) for e in out]
 
 
 @pytest.mark.parametrize('on', [True, False])
 def test_tracking_gyro_poor_keeps_poor_frames_at_the_prediction(on: bool) -> None:
     """tracking.gyro_poor (no gate, no correction limit): each poor noise frame moves the
     output by exactly the gyro's step (roll 1 deg, pan 0.5 deg = f x 0.5 deg in rad px, the
-    equidistant shift of the IMU prediction); off, the noise frames' readouts move it
-    elsewhere."""
+    equidistant shift of the IMU prediction); off, the states take the noise frames'
+    readouts and the output holds (the gyro is not taken to carry them)."""
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
     hrn = make({'focal_px': 80.0, 'imu': {'enabled': True},
