@@ -42,7 +42,9 @@ KEY=VALUE`` overrides resonator settings of the HRN methods (as ``hrn-vo run --s
 ``--pset KEY=VALUE`` packetizer settings of every method, ``--sset KEY=VALUE`` the spiking
 method's emulation settings (``SpikingConfig``). ``--trace DIR`` writes, per
 sequence and method, ``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time, error,
-state and quality (the error-vs-time of the failures).
+state and quality (the error-vs-time of the failures). ``--config FILE`` runs every kind with
+that params file instead of ``config/<kind>.yaml`` (``config/live.yaml`` on the rotation
+family: a camera without calibration, so no rectification and no sphere correction).
 
 Examples::
 
@@ -138,13 +140,22 @@ OVERRIDES: dict[str, Any] = {}
 P_OVERRIDES: dict[str, Any] = {}
 #: Spiking-emulation settings of the spiking method (``--sset``, :class:`SpikingConfig`).
 S_OVERRIDES: dict[str, Any] = {}
+#: A config file for every kind instead of ``config/<kind>.yaml`` (``--config``).
+CONFIG: dict[str, Path] = {}
 
 
 def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None,
-          s_overrides: dict[str, Any] | None = None) -> None:
+          s_overrides: dict[str, Any] | None = None, config: Path | None = None) -> None:
     OVERRIDES.update(overrides)
     P_OVERRIDES.update(p_overrides or {})
     S_OVERRIDES.update(s_overrides or {})
+    if config is not None:
+        CONFIG['path'] = config
+
+
+def config_path(kind: str) -> Path:
+    """The config file the kind runs with: ``--config`` or ``config/<kind>.yaml``."""
+    return CONFIG.get('path', ROOT / 'config' / CASES[kind].config)
 
 
 def _value(text: str) -> Any:
@@ -169,7 +180,7 @@ def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
         if imu:                             # as hrn-vo run --imu: both stages know the gyro
             over['imu.enabled'] = True
             pk['imu.enabled'] = True
-        dc = dataset_configs(ROOT / 'config' / CASES[kind].config, stub,
+        dc = dataset_configs(config_path(kind), stub,
                              packetizer=pk, resonator=over)
     return dc.packetizer, dc.resonator
 
@@ -177,7 +188,7 @@ def _configs(kind: str, seq: Sequence, imu: bool) -> tuple[Any, Any]:
 def _config_tag(kind: str) -> str:
     """A short hash of the kind's packetizer settings in its config file: frames cached
     under another config's settings are not reused (the events are)."""
-    with open(ROOT / 'config' / CASES[kind].config) as f:
+    with open(config_path(kind)) as f:
         section = yaml.safe_load(f)['packetizer_node']['ros__parameters']
     text = json.dumps(section, sort_keys=True)
     return '_p' + hashlib.sha1(text.encode()).hexdigest()[:8]
@@ -187,7 +198,7 @@ def imu_framing(kind: str) -> bool:
     """Whether the kind's config (with ``--pset``) makes other packets for a fused gyro
     (its packet time limit, ``PacketizerConfig.frame_ms``, changes with ``imu.enabled``):
     HRN + IMU then runs on those."""
-    path = ROOT / 'config' / CASES[kind].config
+    path = config_path(kind)
     plain = load_configs(path, packetizer=P_OVERRIDES)[0]
     gyro = load_configs(path, packetizer={**P_OVERRIDES, 'imu.enabled': True})[0]
     return gyro.frame_ms != plain.frame_ms
@@ -569,6 +580,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--sset', action='append', default=[], metavar='KEY=VALUE',
                    help='override a spiking-emulation setting of the spiking method '
                         '(SpikingConfig, e.g. precision=float; repeatable)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='run every kind with this config file instead of config/<kind>.yaml '
+                        '(e.g. config/live.yaml on the rotation family)')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
                    help='run these seeds instead of the first -n of the split')
     p.add_argument('--rows', type=Path, nargs='+', default=None,
@@ -605,12 +619,17 @@ def main(argv: list[str] | None = None) -> int:
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
     print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
-          f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs',
+          f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs'
+          + ('' if args.config is None else f', config {args.config}'),
           flush=True)
     t0 = time.perf_counter()
     rows = []
     ctx = multiprocessing.get_context('spawn')
-    with ctx.Pool(args.jobs, _init, (over, p_over, s_over)) as pool:
+    if args.config is not None and not args.config.is_file():
+        print(f'--config: no such file: {args.config}', file=sys.stderr)
+        return 2
+    config = None if args.config is None else args.config.resolve()
+    with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]
