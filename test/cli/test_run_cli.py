@@ -24,6 +24,7 @@ from hrn_vo_ros.core.events.frames import (
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence
 from hrn_vo_ros.core.hrn.backends import make_backend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.logpolar import make_geometry
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import iter_events, read_calib, read_imu, write_sequence
@@ -311,11 +312,19 @@ def test_the_live_config_runs_the_rotation_network_without_a_calibration() -> No
             out.update(flat(v, prefix + k + '.') if isinstance(v, dict) else {prefix + k: v})
         return out
 
-    live = [flat(to_dict(c)) for c in load_configs(ROOT / 'config' / 'live.yaml')]
-    rot = [flat(to_dict(c)) for c in load_configs(ROOT / 'config' / 'shapes_rotation.yaml')]
+    cfgs = [load_configs(ROOT / 'config' / name) for name in ('live.yaml',
+                                                                'shapes_rotation.yaml')]
+    live, rot = ([flat(to_dict(c)) for c in pair] for pair in cfgs)
     differ = {k for a, b in zip(live, rot, strict=True) for k in a if a[k] != b[k]}
-    assert differ == {'rectify', 'sphere.enabled'}, differ
+    # the canvas is given relative to the frame (any camera), the same 128x96 for 96x72
+    assert differ == {'rectify', 'sphere.enabled', 'codebook.canvas_width',
+                      'codebook.canvas_height', 'codebook.canvas_scale'}, differ
     assert live[0]['rectify'] == 'none' and live[1]['sphere.enabled'] is False
+    geometry = [make_geometry(r.width, r.height, r.codebook.canvas_width,
+                              r.codebook.canvas_height, r.logpolar, r.codebook.canvas_scale)
+                for _, r in cfgs]
+    assert geometry[0] == geometry[1]
+    assert (geometry[0].canvas_width, geometry[0].canvas_height) == (128, 96)
 
 
 def test_dataset_configs_derive_what_run_and_graph_share(dataset: Path) -> None:

@@ -29,6 +29,11 @@ class CodebookConfig:
                               lo=0, hi=4096, read_only=True)
     canvas_height: int = param(0, 'Cartesian canvas height in frame pixels (0: frame height)',
                                lo=0, hi=4096, read_only=True)
+    canvas_scale: float = param(0.0, 'where canvas_width/canvas_height are 0: the canvas as '
+                                'this multiple of the frame size, rounded up (0: the frame '
+                                'size), so that a config serves any frame size (live.yaml: '
+                                '4/3, 128x96 for a 96x72 frame)', lo=0.0, hi=8.0,
+                                read_only=True)
     rcond: float = param(1e-6, 'relative cut-off of the pseudo-inverses of random codebooks',
                          lo=0.0, hi=1.0, read_only=True)
     kernel_sigma: float = param(0.0, 'encode each event pixel as a Gaussian blob of this std '
@@ -352,7 +357,7 @@ class ResonatorConfig:
             raise ConfigError(f'ResonatorConfig: imu.mu1 + map.mu2 = '
                               f'{self.imu.mu1 + self.map.mu2} must be <= 1')
         make_geometry(self.width, self.height, self.codebook.canvas_width,
-                      self.codebook.canvas_height, self.logpolar)
+                      self.codebook.canvas_height, self.logpolar, self.codebook.canvas_scale)
 
 
 def needs_focal(cfg: ResonatorConfig) -> bool:

@@ -146,14 +146,18 @@ class Geometry:
 
 
 def make_geometry(width: int, height: int, canvas_width: int, canvas_height: int,
-                  lp: LogPolarConfig) -> Geometry:
-    """Resolve defaults (canvas 0 = image size, r_max 0 = half-diagonal) and check sizes.
+                  lp: LogPolarConfig, canvas_scale: float = 0.0) -> Geometry:
+    """Resolve defaults (canvas 0 = image size, or ``canvas_scale`` times it rounded up;
+    r_max 0 = half-diagonal) and check sizes.
 
     Raises:
         ConfigError: if the canvas is smaller than the image.
     """
-    cw = canvas_width or width
-    ch = canvas_height or height
+    def scaled(n: int) -> int:     # (the tolerance keeps 96 * 1.3333333 at 128)
+        return max(n, math.ceil(n * canvas_scale - 1e-6)) if canvas_scale > 0.0 else n
+
+    cw = canvas_width or scaled(width)
+    ch = canvas_height or scaled(height)
     if cw < width or ch < height:
         raise ConfigError(f'canvas {cw}x{ch} is smaller than the {width}x{height} frame: set '
                           'canvas_width/canvas_height to 0 (= frame size) or larger')

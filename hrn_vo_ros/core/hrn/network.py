@@ -89,7 +89,8 @@ class HRN(Prediction):
         self.rng = rng
         c = self.cfg
         self.geometry = make_geometry(c.width, c.height, c.codebook.canvas_width,
-                                      c.codebook.canvas_height, c.logpolar)
+                                      c.codebook.canvas_height, c.logpolar,
+                                      c.codebook.canvas_scale)
         self._engine: Engine
         if engine is not None:
             self._engine = engine(c, self.geometry)

@@ -97,3 +97,19 @@ def test_geometry_errors() -> None:
         LogPolarConfig(r_min=5.0, r_max=4.0)
     g = make_geometry(96, 72, 0, 0, LogPolarConfig())
     assert g.r_max == pytest.approx(60.0) and g.centre == (47.5, 35.5)
+
+
+@pytest.mark.parametrize('frame, sizes, scale, canvas', [
+    ((96, 72), (0, 0), 4 / 3, (128, 96)),        # live.yaml on a DAVIS240C at 2.5
+    ((96, 72), (0, 0), 1.3333333, (128, 96)),    # (as written in the YAML)
+    ((256, 192), (0, 0), 4 / 3, (342, 256)),     # a 640x480 sensor: ceil(341.33) = 342
+    ((139, 104), (0, 0), 1.5, (209, 156)),       # DAVIS346 at 2.5: ceil(208.5)
+    ((96, 72), (0, 0), 0.0, (96, 72)),           # off: the frame size
+    ((96, 72), (0, 0), 0.5, (96, 72)),           # never smaller than the frame
+    ((96, 72), (100, 0), 4 / 3, (100, 96)),      # a given width wins, the height scales
+])
+def test_canvas_scale_sizes_the_canvas_from_the_frame(
+        frame: tuple[int, int], sizes: tuple[int, int], scale: float,
+        canvas: tuple[int, int]) -> None:
+    g = make_geometry(*frame, *sizes, LogPolarConfig(), scale)
+    assert (g.canvas_width, g.canvas_height) == canvas
