@@ -616,6 +616,9 @@ def main(argv: list[str] | None = None) -> int:
         for item in items:
             key, _, val = item.partition('=')
             into[key.strip()] = _value(val.strip())
+    if args.config is not None and not args.config.is_file():
+        print(f'--config: no such file: {args.config}', file=sys.stderr)
+        return 2
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
     print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
@@ -625,9 +628,6 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     rows = []
     ctx = multiprocessing.get_context('spawn')
-    if args.config is not None and not args.config.is_file():
-        print(f'--config: no such file: {args.config}', file=sys.stderr)
-        return 2
     config = None if args.config is None else args.config.resolve()
     with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config)) as pool:
         for out in pool.imap_unordered(job, tasks):

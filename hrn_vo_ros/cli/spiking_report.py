@@ -18,8 +18,7 @@ from hrn_vo_ros.cli.main import echo
 from hrn_vo_ros.cli.run import parse_overrides
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration
-from hrn_vo_ros.core.hrn.config import needs_focal
-from hrn_vo_ros.core.hrn.logpolar import make_geometry
+from hrn_vo_ros.core.hrn.config import geometry, needs_focal
 from hrn_vo_ros.core.sim.simulator import simulate
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.report import report
@@ -69,8 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if seq is not None:
         t, imgs = frames_from_events(seq.events, pcfg)
         frames = (t[:args.frames], imgs[:args.frames])
-    g = make_geometry(cfg.width, cfg.height, cfg.codebook.canvas_width,
-                      cfg.codebook.canvas_height, cfg.logpolar, cfg.codebook.canvas_scale)
+    g = geometry(cfg)
     echo(f'spiking report: {args.config} (canvas {g.canvas_width}x{g.canvas_height}, '
          f'log-polar {cfg.logpolar.n_theta}x{cfg.logpolar.n_rho}); {scfg}')
     for line in report(cfg, scfg, frames, dense=not args.no_dense):

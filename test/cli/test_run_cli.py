@@ -23,8 +23,7 @@ from hrn_vo_ros.core.events.frames import (
 )
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence
 from hrn_vo_ros.core.hrn.backends import make_backend
-from hrn_vo_ros.core.hrn.config import ResonatorConfig
-from hrn_vo_ros.core.hrn.logpolar import make_geometry
+from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import iter_events, read_calib, read_imu, write_sequence
@@ -320,11 +319,8 @@ def test_the_live_config_runs_the_rotation_network_without_a_calibration() -> No
     assert differ == {'rectify', 'sphere.enabled', 'codebook.canvas_width',
                       'codebook.canvas_height', 'codebook.canvas_scale'}, differ
     assert live[0]['rectify'] == 'none' and live[1]['sphere.enabled'] is False
-    geometry = [make_geometry(r.width, r.height, r.codebook.canvas_width,
-                              r.codebook.canvas_height, r.logpolar, r.codebook.canvas_scale)
-                for _, r in cfgs]
-    assert geometry[0] == geometry[1]
-    assert (geometry[0].canvas_width, geometry[0].canvas_height) == (128, 96)
+    g = [geometry(r) for _, r in cfgs]
+    assert g[0] == g[1] and (g[0].canvas_width, g[0].canvas_height) == (128, 96)
 
 
 def test_dataset_configs_derive_what_run_and_graph_share(dataset: Path) -> None:

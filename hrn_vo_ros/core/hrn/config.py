@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from hrn_vo_ros.core.configbase import nested, param, validate
-from hrn_vo_ros.core.hrn.logpolar import LogPolarConfig, make_geometry
+from hrn_vo_ros.core.hrn.logpolar import Geometry, LogPolarConfig, make_geometry
 from hrn_vo_ros.errors import ConfigError
 
 NONLINEARITIES = ('identity', 'relu', 'relu_k', 'exp')
@@ -356,8 +356,13 @@ class ResonatorConfig:
         if self.imu.mu1 + self.map.mu2 > 1.0:
             raise ConfigError(f'ResonatorConfig: imu.mu1 + map.mu2 = '
                               f'{self.imu.mu1 + self.map.mu2} must be <= 1')
-        make_geometry(self.width, self.height, self.codebook.canvas_width,
-                      self.codebook.canvas_height, self.logpolar, self.codebook.canvas_scale)
+        geometry(self)
+
+
+def geometry(cfg: ResonatorConfig) -> Geometry:
+    """The canvas and log-polar geometry of a config (sizes resolved and checked)."""
+    return make_geometry(cfg.width, cfg.height, cfg.codebook.canvas_width,
+                         cfg.codebook.canvas_height, cfg.logpolar, cfg.codebook.canvas_scale)
 
 
 def needs_focal(cfg: ResonatorConfig) -> bool:

@@ -42,13 +42,12 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.events.frames import check_event_frame
 from hrn_vo_ros.core.hrn import fft as hfft
-from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig
 from hrn_vo_ros.core.hrn.dense import DenseEngine
 from hrn_vo_ros.core.hrn.engine import Engine, EngineFactory
 from hrn_vo_ros.core.hrn.fast import FastEngine
 from hrn_vo_ros.core.hrn.gyro import GyroBias
 from hrn_vo_ros.core.hrn.hotpixels import HotPixelMask
-from hrn_vo_ros.core.hrn.logpolar import make_geometry
 from hrn_vo_ros.core.hrn.pose import ReportedPose
 from hrn_vo_ros.core.hrn.prediction import Prediction
 from hrn_vo_ros.core.hrn.shared import (
@@ -88,9 +87,7 @@ class HRN(Prediction):
         self.cfg = cfg if cfg is not None else ResonatorConfig()
         self.rng = rng
         c = self.cfg
-        self.geometry = make_geometry(c.width, c.height, c.codebook.canvas_width,
-                                      c.codebook.canvas_height, c.logpolar,
-                                      c.codebook.canvas_scale)
+        self.geometry = geometry(c)
         self._engine: Engine
         if engine is not None:
             self._engine = engine(c, self.geometry)
