@@ -18,6 +18,7 @@ Machines without ``launch`` start the same graph with ``hrn-vo demo`` (hrn_vo_ro
 
 import atexit
 import contextlib
+import functools
 import os
 import tempfile
 
@@ -56,22 +57,37 @@ def _flag(context, name):
     return LaunchConfiguration(name).perform(context).strip().lower() in ('true', '1', 'yes')
 
 
-def _node_params(config, name, namespace):
-    """The params file for node ``name``: ``config`` itself, or a copy keyed for ``namespace``.
+def _merge(into, params):
+    """Merge nested parameter dicts (``params`` wins; sub-sections merge key by key)."""
+    for key, value in params.items():
+        if isinstance(value, dict) and isinstance(into.get(key), dict):
+            _merge(into[key], value)
+        else:
+            into[key] = value
+    return into
+
+
+def _node_params(config, name, namespace, overrides=None):
+    """One params file for node ``name``: the sections of ``config`` that apply to it
+    (``/**`` first) merged under the node's full name, then ``overrides`` (dotted names).
 
     ROS matches a section key without a namespace (``packetizer_node:``) only to a node in the
-    root namespace, so under a namespace the sections of this node are merged (``/**`` first)
-    into one section keyed by the node's full name.
+    root namespace, hence one section keyed by the full name. Overrides go into the same file
+    rather than to launch_ros as dicts, which it writes to files of its own and never removes;
+    this file is removed when the launch process exits.
     """
-    if not namespace.strip('/'):
-        return config
-    with open(config) as f:
-        doc = yaml.safe_load(f) or {}
-    full = '/' + namespace.strip('/') + '/' + name
+    doc = {}
+    if config:
+        with open(config) as f:
+            doc = yaml.safe_load(f) or {}
+    full = '/' + '/'.join(p for p in (namespace.strip('/'), name) if p)
     params = {}
     for key in ('/**', '/**/' + name, name, '/' + name, full):
         section = doc.get(key) or {}
-        params.update(section.get('ros__parameters') or {})
+        _merge(params, section.get('ros__parameters') or {})
+    for dotted, value in (overrides or {}).items():
+        *path, leaf = dotted.split('.')
+        _merge(params, functools.reduce(lambda v, k: {k: v}, reversed(path), {leaf: value}))
     with tempfile.NamedTemporaryFile('w', prefix=f'hrn_vo_{name}_', suffix='.yaml',
                                      delete=False) as out:
         yaml.safe_dump({full: {'ros__parameters': params}}, out)
@@ -105,15 +121,15 @@ def _nodes(context, *args, **kwargs):
         Node(package='hrn_vo_ros', executable='packetizer_node', name='packetizer_node',
              namespace=namespace,
              # use_imu: the packets of a fused gyro (imu.max_frame_ms of the config)
-             parameters=[_node_params(config, 'packetizer_node', namespace),
-                         {'imu.enabled': resonator['imu.enabled']}, sim_time],
+             parameters=[_node_params(config, 'packetizer_node', namespace,
+                                      {'imu.enabled': resonator['imu.enabled'], **sim_time})],
              remappings=[('~/events', topic['events_topic']),
                          ('~/camera_info', topic['camera_info_topic'])],
              output='screen'),
         Node(package='hrn_vo_ros', executable='resonator_node', name='resonator_node',
              namespace=namespace,
-             parameters=[_node_params(config, 'resonator_node', namespace), resonator,
-                         sim_time],
+             parameters=[_node_params(config, 'resonator_node', namespace,
+                                      {**resonator, **sim_time})],
              # relative: the packetizer of this namespace
              remappings=[('~/frames', 'packetizer_node/frames'),
                          ('~/imu', topic['imu_topic'])],
@@ -125,8 +141,9 @@ def _nodes(context, *args, **kwargs):
         actions.append(Node(package='hrn_vo_ros', executable='bag_player', name='bag_player',
                             namespace=namespace,
                             # with use_sim_time the player publishes /clock (runs on wall time)
-                            parameters=[{'bag': bag, 'rate': rate, 'wait_for_subscribers': 1,
-                                         'clock': sim_time['use_sim_time']}],
+                            parameters=[_node_params('', 'bag_player', namespace, {
+                                'bag': bag, 'rate': rate, 'wait_for_subscribers': 1,
+                                'clock': sim_time['use_sim_time']})],
                             # the drivers' topics, as bags record them, to the graph's inputs
                             remappings=[('/event_camera/events', topic['events_topic']),
                                         ('/event_camera/camera_info',

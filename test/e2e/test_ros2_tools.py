@@ -154,7 +154,9 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
     log = tmp_path / 'launch.log'
     args = ['ros2', 'launch', 'hrn_vo_ros', 'hrn_vo.launch.py', 'use_imu:=true',
             'publish_tf:=true', 'focal_px:=79.6']
-    with started(args, log) as proc:
+    tmp = tmp_path / 'tmp'   # where the launch writes the nodes' parameter files
+    tmp.mkdir()
+    with started(args, log, dict(os.environ, TMPDIR=str(tmp))) as proc:
         wait_for('the resonator parameters', lambda: param('/resonator_node', 'imu.enabled')
                  == 'Boolean value is: True')
         assert param('/resonator_node', 'publish_tf') == 'Boolean value is: True'
@@ -173,6 +175,10 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
         wait_for('the reconfiguration log line',
                  lambda: 'resonator reconfigured' in log.read_text(), timeout=20)
         assert proc.poll() is None, log.read_text()
+        assert sorted(p.name.rsplit('_', 1)[0] for p in tmp.glob('hrn_vo_*')) == [
+            'hrn_vo_packetizer_node', 'hrn_vo_resonator_node']
+    # the launch removed its files when it stopped, and launch_ros wrote none of its own
+    assert not [*tmp.glob('hrn_vo_*'), *tmp.glob('launch_params_*')], log.read_text()
 
 
 def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Path) -> None:
@@ -197,5 +203,5 @@ def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Pat
         assert '/packetizer_node/frames' not in topics()
         assert proc.poll() is None, log.read_text()
         assert len(list(tmp.glob('hrn_vo_*.yaml'))) == 2
-    # the launch process removed its own files when it stopped (launch_ros's are its own)
-    assert not list(tmp.glob('hrn_vo_*.yaml')), log.read_text()
+    # the launch removed its files when it stopped, and launch_ros wrote none of its own
+    assert not [*tmp.glob('hrn_vo_*'), *tmp.glob('launch_params_*')], log.read_text()
