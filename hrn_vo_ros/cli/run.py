@@ -176,6 +176,9 @@ def run(args: argparse.Namespace) -> int:
                              packetizer=pk_over, resonator=rs_over)
     for w in resolved.warnings:
         echo(f'warning: {w}')
+    if args.config is None:
+        echo("note: no --config: the paper's network (the config defaults); the validated ones "
+             'are config/live.yaml (any sensor, no calibration) and config/<kind>.yaml')
     dc = resolved.configs
     rcfg = dc.resonator
     camera_from_imu = np.reshape(np.asarray(rcfg.imu.camera_from_imu, np.float64), (3, 3))

@@ -94,6 +94,20 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return synthetic_dataset(tmp_path_factory.mktemp('run') / 'seq')
 
 
+@pytest.mark.parametrize('config', [None, 'live.yaml'])
+def test_run_without_a_config_says_it_runs_the_papers_network(
+        dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        config: str | None) -> None:
+    """The config defaults are the paper's network (4 of 69 rotation tuning draws of the
+    randomized family): a run without --config says so and names the validated files."""
+    args = [] if config is None else ['--config', str(ROOT / 'config' / config)]
+    assert main(['run', str(dataset), *args, '--out', str(tmp_path / 'e.csv'),
+                 '--set', 'packetizer.rectify=none', '--quiet']) == 0
+    out = capsys.readouterr().out
+    assert ("no --config: the paper's network" in out) == (config is None), out
+    assert ('config/live.yaml' in out) == (config is None), out
+
+
 @pytest.mark.parametrize('imu', [False, True])
 def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str],
