@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from hrn_vo_ros.cli.main import main
-from hrn_vo_ros.core.configbase import flat_keys, to_dict
+from hrn_vo_ros.core.configbase import describe, flat_keys, to_dict
 from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.frames import (
@@ -319,15 +319,9 @@ def test_the_live_config_runs_the_rotation_network_without_a_calibration() -> No
     """config/live.yaml takes every algorithm setting of shapes_rotation.yaml (the ones the
     randomized family validated; with the paper's defaults it tracked 4 of 69 tuning draws)
     except those that need a calibration: no rectification, so no sphere correction."""
-    def flat(d: dict, prefix: str = '') -> dict[str, object]:
-        out: dict[str, object] = {}
-        for k, v in d.items():
-            out.update(flat(v, prefix + k + '.') if isinstance(v, dict) else {prefix + k: v})
-        return out
-
     cfgs = [load_configs(ROOT / 'config' / name) for name in ('live.yaml',
                                                                 'shapes_rotation.yaml')]
-    live, rot = ([flat(to_dict(c)) for c in pair] for pair in cfgs)
+    live, rot = ([{p.name: p.default for p in describe(c)} for c in pair] for pair in cfgs)
     differ = {k for a, b in zip(live, rot, strict=True) for k in a if a[k] != b[k]}
     # the canvas is given relative to the frame (any camera), the same 128x96 for 96x72
     assert differ == {'rectify', 'sphere.enabled', 'codebook.canvas_width',

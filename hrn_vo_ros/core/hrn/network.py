@@ -253,6 +253,8 @@ class HRN(Prediction):
             self.tracker.after_gap(dt_s)
         predicted, held, shift = self._predict(first, gyro_delta)
         gyro = gyro_delta is not None and not first     # the gyro predicted this frame
+        # ... and carries the states: poor frames keep its prediction, the output follows it
+        carried = gyro and c.tracking.gyro_poor
         # the predicted states and pose, kept for the quality gate (tracking.hold_gain)
         prior = ({k: x.copy() for k, x in eng.state.items()} if c.tracking.enabled
                  and c.tracking.hold_gain > -1.0 and not first else None)
@@ -270,12 +272,13 @@ class HRN(Prediction):
         target: Any = None
         if c.tracking.enabled and not first:
             point, spread, peak, sims, target = self._assess(
-                S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro)
+                S, point, spread, peak, sims, prior, prior_point, n_on, rejected, gyro,
+                carried)
         self._point = point
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
                                                  or self._thin_map(n_in)
                                                  or (self.tracker.remap_due(t_ns) and gyro)):
-            return self._restart(canvas, t_ns, n_in, spread, peak, sims, gyro=gyro)
+            return self._restart(canvas, t_ns, n_in, spread, peak, sims, carried=carried)
         self._follow(point, n_on, dt_s)
         updated = False
         if learn and (not c.tracking.enabled or (self.state != 'lost'
@@ -285,7 +288,7 @@ class HRN(Prediction):
         if self.gyro_bias.enabled and predicted is not None and not rejected \
                 and self.state == 'tracking' and self.quality >= c.imu.bias_min_quality:
             self._learn_bias(point, predicted, dt_s)
-        return self._emit(t_ns, point, spread, peak, sims, updated, gyro=gyro)
+        return self._emit(t_ns, point, spread, peak, sims, updated, carried=carried)
 
     # -- the steps of a frame ---------------------------------------------------------------
 
@@ -327,11 +330,12 @@ class HRN(Prediction):
 
     def _assess(self, S: Any, point: dict[str, float], spread: dict[str, float],
                 peak: dict[str, float], sims: dict[str, Real], prior: dict[str, Any] | None,
-                prior_point: dict[str, float], n_on: int, rejected: bool, gyro: bool
-                ) -> tuple[dict[str, float], dict[str, float], dict[str, float],
+                prior_point: dict[str, float], n_on: int, rejected: bool, gyro: bool,
+                carried: bool) -> tuple[dict[str, float], dict[str, float], dict[str, float],
                            dict[str, Real], Any]:
         """Quality, the hold of poor sparse or dense frames, the state, and re-localisation
-        when lost. Returns (point, spread, peak, sims, map target)."""
+        when lost (``gyro``: the gyro predicted this frame; ``carried``: and carries the
+        states, ``tracking.gyro_poor``). Returns (point, spread, peak, sims, map target)."""
         c, eng, tr = self.cfg, self._engine, self.tracker
         target = eng.map_target(S, point)
         o1 = eng.overlap(target)
@@ -357,8 +361,7 @@ class HRN(Prediction):
             # a search that is not accepted leaves the states alone when the gyro carries them
             # or when a gap, not a loss, armed it (the states may still hold the pose)
             gap, q_frame = tr.gap_search, tr.quality
-            kept = ({k: x.copy() for k, x in eng.state.items()}
-                    if (gyro and c.tracking.gyro_poor) or gap else None)
+            kept = {k: x.copy() for k, x in eng.state.items()} if carried or gap else None
             near = prior_point if gyro and c.imu.gate_deg > 0.0 else None
             found = self._relocalise(S, point, near)
             if found is not None:
@@ -367,7 +370,7 @@ class HRN(Prediction):
                 eng.state.update(kept)
                 if gap:                 # (and the frame's own quality, not the restart's)
                     tr.quality = q_frame
-        if gyro and c.tracking.gyro_poor and prior is not None and tr.poor:
+        if carried and prior is not None and tr.poor:
             # a poor frame's readout is no measurement: the states keep the gyro's prediction
             point, peak, sims = self._keep_prior(
                 prior, {k: books[k].wrap(v) for k, v in prior_point.items()})
@@ -383,13 +386,13 @@ class HRN(Prediction):
                 and n_in > fill * self._map_on)
 
     def _restart(self, canvas: Floats, t_ns: int, n_in: int, spread: dict[str, float],
-                 peak: dict[str, float], sims: dict[str, Real], *, gyro: bool) -> Estimate:
+                 peak: dict[str, float], sims: dict[str, Real], *, carried: bool) -> Estimate:
         """Bootstrap (``tracking.bootstrap_frames``, ``bootstrap_fill``): poor frames before
         the map was ever tracked say that the map's frame had nothing to track (noise before the
         camera moved, a blur), and a frame with many more pixels than the map's says the map is
         thin: this frame starts a new map, at the pose the output reports now, and the track
         must establish itself on it again."""
-        out = self._emit(t_ns, self._point, spread, peak, sims, False, gyro=gyro)
+        out = self._emit(t_ns, self._point, spread, peak, sims, False, carried=carried)
         self._pose.restart()
         self._start_map(canvas, n_in)
         self._new_origin()
@@ -469,10 +472,9 @@ class HRN(Prediction):
 
     def _emit(self, t_ns: int, point: dict[str, float], spread: dict[str, float],
               peak: dict[str, float], sims: dict[str, Real], updated: bool, *,
-              gyro: bool = False) -> Estimate:
+              carried: bool = False) -> Estimate:
         # the output: the last tracked pose while lost or on a poor degraded frame, unless
         # the gyro carried the states (its prediction is a measurement of the motion)
-        carried = gyro and self.cfg.tracking.gyro_poor
         out = self._pose.update(point, self._engine.books, hold=not carried and self.tracker.poor,
                                 tracking=self.state == 'tracking')
         est = Estimate(t_ns=int(t_ns), h=out['h'], v=out['v'], r=out['r'],
