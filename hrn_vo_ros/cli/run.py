@@ -177,8 +177,8 @@ def run(args: argparse.Namespace) -> int:
     for w in resolved.warnings:
         echo(f'warning: {w}')
     if args.config is None:
-        echo("note: no --config: the paper's network (the config defaults); the validated ones "
-             'are config/live.yaml (any sensor, no calibration) and config/<kind>.yaml')
+        echo('note: no --config: the defaults, the network of config/live.yaml (no '
+             'rectification); config/<kind>.yaml hold the settings of each dataset kind')
     dc = resolved.configs
     rcfg = dc.resonator
     camera_from_imu = np.reshape(np.asarray(rcfg.imu.camera_from_imu, np.float64), (3, 3))

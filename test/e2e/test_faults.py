@@ -47,8 +47,9 @@ from hrn_vo_ros.nodes.common import qos
 pytestmark = pytest.mark.ros
 PER_FRAME = 200
 SENSOR = (240, 180)
+# plain binning (no noise floor: it would hold the short test streams for its 250 ms window)
 NODE_ARGS = ['-p', f'events_per_frame:={PER_FRAME}', '-p', f'sensor_width:={SENSOR[0]}',
-             '-p', f'sensor_height:={SENSOR[1]}']
+             '-p', f'sensor_height:={SENSOR[1]}', '-p', 'noise_floor_hz:=0.0']
 
 
 @dataclass

@@ -63,7 +63,8 @@ def test_loihi_node_publishes_odometry_raster_and_accounting() -> None:
         assert wait(lambda: len(odoms) == n and len(rasters) > 0
                     and 'loihi_synops' in diags.get('loihi_node', {}))
         raster = rasters[-1]
-        assert raster.width == steps and raster.height == 2 * (96 + 72 + 96)
+        # h, v, r populations: the canvas (4/3 of 96x72) and the roll codebook
+        assert raster.width == steps and raster.height == 2 * (128 + 96 + 192)
         d = diags['loihi_node']
         assert float(d['loihi_synops']) > float(d['loihi_spikes']) > 0
         assert float(d['loihi_energy_uJ']) > 0 and float(d['loihi_time_us']) > 0

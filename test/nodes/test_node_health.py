@@ -43,6 +43,8 @@ pytestmark = pytest.mark.ros
 OK, WARN, ERROR = b'\x00', b'\x01', b'\x02'
 WINDOW = 0.6
 PER_FRAME = 500
+# plain binning (no noise floor: it would hold the short test streams for its 250 ms window)
+PLAIN = Parameter('noise_floor_hz', value=0.0)
 
 
 @dataclass
@@ -109,7 +111,7 @@ REMAP = ['--ros-args', '-r', '~/frames:=/frames']
 
 
 def packetizer(**params: Any) -> PacketizerNode:
-    over = [Parameter('events_per_frame', value=PER_FRAME),
+    over = [Parameter('events_per_frame', value=PER_FRAME), PLAIN,
             Parameter('events_reliable', value=True), *COMMON]
     over += [Parameter(k.replace('__', '.'), value=v) for k, v in params.items()]
     return PacketizerNode(parameter_overrides=over, cli_args=REMAP)

@@ -26,7 +26,7 @@ from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.frames import (
     frames_from_events,
     Packetizer,
-    PacketizerConfig,
+    paper_framing,
     with_calibration,
 )
 from hrn_vo_ros.core.events.sequence import CameraCalibration
@@ -38,6 +38,8 @@ from hrn_vo_ros.nodes.resonator_node import ResonatorNode
 
 pytestmark = pytest.mark.ros
 PER_FRAME = 500
+# plain binning (no noise floor: it would hold the short test streams for its 250 ms window)
+PLAIN = Parameter('noise_floor_hz', value=0.0)
 
 
 def random_events(rng: np.random.Generator, n: int, t0: int = 1_000_000) -> EventArray:
@@ -59,7 +61,7 @@ class Graph:
     """The two nodes plus a probe node that feeds and listens, on one executor."""
 
     def __init__(self, imu: bool = False) -> None:
-        params = [Parameter('events_per_frame', value=PER_FRAME),
+        params = [Parameter('events_per_frame', value=PER_FRAME), PLAIN,
                   Parameter('events_reliable', value=True), Parameter('diagnostics_period_s',
                                                                       value=0.2)]
         remap = ['--ros-args', '-r', '~/frames:=/frames']
@@ -117,7 +119,7 @@ def test_packets_become_frames_and_odometry(graph: Graph, rng: np.random.Generat
     for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
         graph.ev_pub.publish(packet(ev[a:b], seq=i))
     assert graph.wait(lambda: len(graph.odoms) >= 10)
-    t_ref, images = frames_from_events(ev, PacketizerConfig(events_per_frame=PER_FRAME))
+    t_ref, images = frames_from_events(ev, paper_framing(events_per_frame=PER_FRAME))
     got = [ros_msgs.image_to_frame(m) for m in graph.frames]
     assert [t for t, _ in got] == t_ref.tolist()
     assert all(np.array_equal(img, ref) for (_, img), ref in zip(got, images, strict=True))
@@ -217,7 +219,8 @@ def test_tf_and_images_when_enabled() -> None:
             ex.spin_once(timeout_sec=0.05)
         tf = got['tf'][0].transforms[0]
         assert (tf.header.frame_id, tf.child_frame_id) == ('odom', 'cam_optical')
-        assert got['map'][0].encoding == 'mono8' and got['img'][0].width == 96
+        # the readout image spans the canvas: 4/3 of the 96x72 frame
+        assert got['map'][0].encoding == 'mono8' and got['img'][0].width == 128
         node.destroy_node()
         probe.destroy_node()
     finally:
@@ -253,7 +256,7 @@ def lone_packetizer(*params: Parameter) -> Iterator[Lone]:
     rclpy.init()
     node = PacketizerNode(parameter_overrides=[
         Parameter('events_per_frame', value=PER_FRAME), Parameter('events_reliable', value=True),
-        Parameter('diagnostics_period_s', value=0.2), *params])
+        Parameter('diagnostics_period_s', value=0.2), PLAIN, *params])
     probe = Node('probe')
     try:
         lone = Lone(SingleThreadedExecutor(), probe,
@@ -293,14 +296,14 @@ def test_rectifying_packetizer_holds_events_until_camera_info(rng: np.random.Gen
         assert not frames
         info_pub.publish(camera_info(calib))                      # latched, as bags replay it
         assert wait(lambda: len(frames) == 6)
-        cfg = with_calibration(PacketizerConfig(events_per_frame=PER_FRAME,
-                                                rectify='equidistant'), calib)
+        cfg = with_calibration(paper_framing(events_per_frame=PER_FRAME,
+                                             rectify='equidistant'), calib)
         t_ref, images = frames_from_events(ev, cfg)
         got = [ros_msgs.image_to_frame(m) for m in frames]
         assert [t for t, _ in got] == t_ref.tolist()
         assert all(np.array_equal(img, ref) for (_, img), ref in zip(got, images, strict=True))
         # the held events were rectified: they differ from plain binning
-        _, plain = frames_from_events(ev, PacketizerConfig(events_per_frame=PER_FRAME))
+        _, plain = frames_from_events(ev, paper_framing(events_per_frame=PER_FRAME))
         assert not np.array_equal(plain, images)
         assert wait(lambda: diags[-1].get('waiting_for_camera_info') == 'False'
                     and diags[-1].get('events_held') == '0')
@@ -328,7 +331,7 @@ def test_denoising_packetizer_drops_lone_events_and_counts_them(
         cuts = [0, 1000, 1001, 2500, len(ev)]
         for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
             ev_pub.publish(packet(ev[a:b], seq=i))
-        offline = Packetizer(PacketizerConfig(events_per_frame=PER_FRAME, denoise_ms=0.02))
+        offline = Packetizer(paper_framing(events_per_frame=PER_FRAME, denoise_ms=0.02))
         ref = []
         for a, b in zip(cuts[:-1], cuts[1:], strict=True):
             ref += offline.push(ev[a:b])

@@ -104,7 +104,7 @@ class FramingImuConfig:
 
     enabled: bool = param(False, 'the resonator fuses a gyro (launch use_imu:=true, hrn-vo '
                           'run --imu): packets close by imu.max_frame_ms')
-    max_frame_ms: float = param(0.0, 'with the gyro, a packet also closes once it spans this '
+    max_frame_ms: float = param(100.0, 'with the gyro, a packet also closes once it spans this '
                                 'many ms and holds at least min_frame_events events; 0: '
                                 'max_frame_ms as without the gyro', lo=0.0, hi=1e6)
 
@@ -131,7 +131,7 @@ class PacketizerConfig:
                               'of its 8 neighbouring sensor pixels fired in the same or the '
                               'previous bin of this many ms (lone noise events and hot pixels '
                               'go; delays events by up to one bin); 0: off', lo=0.0, hi=1000.0)
-    noise_floor_hz: float = param(0.0, 'when the background rate (isolated events per '
+    noise_floor_hz: float = param(0.4, 'when the background rate (isolated events per '
                                   'second per sensor pixel in the first full window of the '
                                   'stream, noise_window_ms) is at least this and their share '
                                   'at least noise_share, every frame pixel needs one event '
@@ -149,7 +149,7 @@ class PacketizerConfig:
                                 'holds at least min_frame_events events (slow or sparse '
                                 'scenes still give frames at a steady rate); 0: off, every '
                                 'packet holds events_per_frame events', lo=0.0, hi=1e6)
-    min_frame_events: int = param(500, 'fewest events of a packet closed by max_frame_ms (a '
+    min_frame_events: int = param(250, 'fewest events of a packet closed by max_frame_ms (a '
                                   'still camera waits for them)', lo=1, hi=10_000_000)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
     imu: FramingImuConfig = nested(FramingImuConfig, 'packets with a fused gyro')
@@ -159,7 +159,7 @@ class PacketizerConfig:
         if not math.isfinite(self.downsample):
             raise ConfigError('PacketizerConfig.downsample must be a finite number >= 1')
         for name, ms in (('max_frame_ms', self.max_frame_ms),
-                         ('imu.max_frame_ms', self.imu.max_frame_ms)):
+                         ('imu.max_frame_ms', self.imu.max_frame_ms if self.imu.enabled else 0)):
             if ms > 0 and self.min_frame_events > self.events_per_frame:
                 raise ConfigError(f'min_frame_events ({self.min_frame_events}) is above '
                                   f'events_per_frame ({self.events_per_frame}): no packet '
@@ -187,6 +187,16 @@ class PacketizerConfig:
     def height(self) -> int:
         """Frame height in pixels, ceil(sensor_height / downsample)."""
         return _out_size(self.sensor_height, self.downsample)
+
+
+def paper_framing(**overrides: Any) -> PacketizerConfig:
+    """The paper's packetizer (plain binning: packets of ``events_per_frame`` events, no
+    noise-floor threshold, no time limit with the gyro), the defaults of the first rounds, with
+    ``overrides`` (field values) on top; the defaults add the noise floor of the validated
+    network (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK`` is the resonator's counterpart)."""
+    imu = overrides.pop('imu', FramingImuConfig(max_frame_ms=0.0))
+    fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, **overrides}
+    return PacketizerConfig(imu=imu, **fields)
 
 
 def _out_size(n: int, f: float) -> int:

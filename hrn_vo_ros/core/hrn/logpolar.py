@@ -83,16 +83,16 @@ def csr_matvec(a: sp.csr_matrix, x: NDArray[Any]) -> NDArray[Any]:
 class LogPolarConfig:
     """Log-polar grid of the roll/scale partition."""
 
-    n_theta: int = param(96, 'angle samples over 360 deg (roll resolution 360/n_theta deg)',
+    n_theta: int = param(192, 'angle samples over 360 deg (roll resolution 360/n_theta deg)',
                          lo=4, hi=4096, read_only=True)
-    n_rho: int = param(72, 'log-radius samples from r_min to r_max', lo=2, hi=4096,
+    n_rho: int = param(36, 'log-radius samples from r_min to r_max', lo=2, hi=4096,
                        read_only=True)
-    r_min: float = param(1.0, 'innermost ring radius in frame pixels', lo=0.01, hi=1000.0,
+    r_min: float = param(4.0, 'innermost ring radius in frame pixels', lo=0.01, hi=1000.0,
                          read_only=True)
     r_max: float = param(0.0, 'outermost ring radius in frame pixels (0: half the image '
                          'diagonal, so the grid covers the whole frame)', lo=0.0, hi=10000.0,
                          read_only=True)
-    ring_weight: float = param(0.0, 'exponent a of the ring weights (rho / r_max)^a of the '
+    ring_weight: float = param(0.5, 'exponent a of the ring weights (rho / r_max)^a of the '
                                'log-polar images in the roll/scale updates (0: all rings equal; '
                                '1: by arc length, so the over-sampled centre does not dominate)',
                                lo=0.0, hi=4.0, read_only=True)

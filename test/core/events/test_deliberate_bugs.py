@@ -8,7 +8,7 @@ import pytest
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import distort_points, undistort_points
-from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig
+from hrn_vo_ros.core.events.frames import Packetizer, paper_framing
 from hrn_vo_ros.io import eventpacket
 
 # plumb bob, fx = fy = 100, c = 0, only tangential terms p1 = 0.01, p2 = 0.02; at (0.3, 0.1):
@@ -30,7 +30,7 @@ def test_plumb_bob_undistort_matches_hand_values() -> None:
 
 
 def test_packetizer_accepts_a_batch_starting_at_the_previous_time() -> None:
-    pk = Packetizer(PacketizerConfig(events_per_frame=4))
+    pk = Packetizer(paper_framing(events_per_frame=4))
     a = EventArray.from_arrays(np.array([10, 20, 30]), np.array([1, 2, 3]), np.array([1, 1, 1]),
                                np.array([1, 0, 1]))
     b = EventArray.from_arrays(np.array([30, 40, 50]), np.array([4, 5, 6]), np.array([2, 2, 2]),

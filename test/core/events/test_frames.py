@@ -20,6 +20,7 @@ from hrn_vo_ros.core.events.frames import (
     packet_ends,
     Packetizer,
     PacketizerConfig,
+    paper_framing,
     rectify_lut,
     with_calibration,
 )
@@ -38,7 +39,7 @@ def random_events(rng: np.random.Generator, n: int, w: int = 240, h: int = 180) 
                                                   ((346, 260), 2.5, (139, 104))])
 def test_output_size_and_every_pixel_lands_inside(sensor: tuple[int, int], f: float,
                                                   out: tuple[int, int]) -> None:
-    cfg = PacketizerConfig(sensor_width=sensor[0], sensor_height=sensor[1], downsample=f)
+    cfg = paper_framing(sensor_width=sensor[0], sensor_height=sensor[1], downsample=f)
     assert (cfg.width, cfg.height) == out
     lx = downsample_lut(sensor[0], f)
     assert lx.min() == 0 and lx.max() == out[0] - 1
@@ -56,7 +57,7 @@ def test_downsampling_is_centre_aligned_division_and_rounding() -> None:
 
 
 def test_frame_content_time_and_thresholds() -> None:
-    cfg = PacketizerConfig(events_per_frame=4, sensor_width=20, sensor_height=10, downsample=2.0)
+    cfg = paper_framing(events_per_frame=4, sensor_width=20, sensor_height=10, downsample=2.0)
     ev = EventArray.from_arrays(np.array([100, 200, 300, 401]), np.array([0, 1, 5, 19]),
                                 np.array([0, 0, 3, 9]), np.array([1, 0, 1, 1]))
     t, img = frames_from_events(ev, cfg)
@@ -64,8 +65,8 @@ def test_frame_content_time_and_thresholds() -> None:
     expect = np.zeros((5, 10), np.uint8)
     expect[0, 0] = expect[1, 2] = expect[4, 9] = 1
     np.testing.assert_array_equal(img[0], expect)
-    cfg2 = PacketizerConfig(events_per_frame=4, sensor_width=20, sensor_height=10,
-                            downsample=2.0, min_events_per_pixel=2)
+    cfg2 = paper_framing(events_per_frame=4, sensor_width=20, sensor_height=10,
+                         downsample=2.0, min_events_per_pixel=2)
     _, img2 = frames_from_events(ev, cfg2)
     only = np.zeros((5, 10), np.uint8)
     only[0, 0] = 1            # (0,0) and (1,0) both fall into pixel (0, 0): 2 events
@@ -73,7 +74,7 @@ def test_frame_content_time_and_thresholds() -> None:
 
 
 def test_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
-    cfg = PacketizerConfig(events_per_frame=1000)
+    cfg = paper_framing(events_per_frame=1000)
     ev = random_events(rng, 25_500)
     t_ref, img_ref = frames_from_events(ev, cfg)
     assert len(t_ref) == 25
@@ -93,7 +94,7 @@ def test_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
 
 
 def test_time_capped_packet_ends_by_hand() -> None:
-    cfg = PacketizerConfig(events_per_frame=10, min_frame_events=3, max_frame_ms=1.0)
+    cfg = paper_framing(events_per_frame=10, min_frame_events=3, max_frame_ms=1.0)
     ms = 1_000_000
     t = np.array([*range(12), 2 * ms, 2 * ms + 1, 2 * ms + 2, 2 * ms + 3, 5 * ms], np.int64)
     # [0, 10): ten events within 1 ms close by count. [10, 13): the packet from t = 10 ns holds
@@ -103,9 +104,9 @@ def test_time_capped_packet_ends_by_hand() -> None:
     # An event exactly at the window's end starts the next packet.
     assert packet_ends(np.array([0, 1, 2, ms, ms], np.int64), cfg).tolist() == [3]
     # Off: fixed counts.
-    assert packet_ends(t, PacketizerConfig(events_per_frame=5)).tolist() == [5, 10, 15]
+    assert packet_ends(t, paper_framing(events_per_frame=5)).tolist() == [5, 10, 15]
     with pytest.raises(ConfigError, match='min_frame_events'):
-        PacketizerConfig(events_per_frame=10, min_frame_events=11, max_frame_ms=1.0)
+        paper_framing(events_per_frame=10, min_frame_events=11, max_frame_ms=1.0)
 
 
 def test_imu_packets_close_by_their_own_limit() -> None:
@@ -115,7 +116,7 @@ def test_imu_packets_close_by_their_own_limit() -> None:
     # closes at the event at 2 ms, [4, 7) at the one at 5 ms, [7, 8) holds one event (< 3) and
     # waits for its third.
     imu = FramingImuConfig(enabled=True, max_frame_ms=1.0)
-    cfg = PacketizerConfig(events_per_frame=5, min_frame_events=3)
+    cfg = paper_framing(events_per_frame=5, min_frame_events=3)
     assert packet_ends(t, cfg).tolist() == [5]
     with_gyro = replace(cfg, imu=imu)
     assert with_gyro.frame_ms == 1.0 and with_gyro.max_frame_ns == ms
@@ -124,12 +125,15 @@ def test_imu_packets_close_by_their_own_limit() -> None:
     assert replace(cfg, imu=replace(imu, enabled=False)).frame_ms == 0.0
     assert replace(cfg, max_frame_ms=2.0, imu=replace(imu, max_frame_ms=0.0)).frame_ms == 2.0
     with pytest.raises(ConfigError, match='imu.max_frame_ms'):
-        PacketizerConfig(events_per_frame=5, min_frame_events=6, imu=imu)
+        paper_framing(events_per_frame=5, min_frame_events=6, imu=imu)
+    # the gyro's limit (on by default, 100 ms) is checked only with the gyro fused
+    assert PacketizerConfig(events_per_frame=100).imu.max_frame_ms == 100.0
+    paper_framing(events_per_frame=5, min_frame_events=6, imu=replace(imu, enabled=False))
 
 
 def test_time_capped_frames_by_hand() -> None:
-    cfg = PacketizerConfig(events_per_frame=4, sensor_width=20, sensor_height=10, downsample=2.0,
-                           max_frame_ms=0.001, min_frame_events=2)      # 1 us windows
+    cfg = paper_framing(events_per_frame=4, sensor_width=20, sensor_height=10, downsample=2.0,
+                        max_frame_ms=0.001, min_frame_events=2)      # 1 us windows
     ev = EventArray.from_arrays(np.array([100, 200, 1300, 1400, 1500, 3000]),
                                 np.array([0, 19, 4, 4, 5, 0]), np.array([0, 9, 2, 2, 2, 0]),
                                 np.zeros(6, np.int64))
@@ -154,7 +158,7 @@ def test_time_capped_streaming_equals_batch_for_any_split(rng: np.random.Generat
     n = len(t)
     ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
                                 rng.integers(0, 2, n))
-    cfg = PacketizerConfig(events_per_frame=1000, max_frame_ms=50.0, min_frame_events=200)
+    cfg = paper_framing(events_per_frame=1000, max_frame_ms=50.0, min_frame_events=200)
     t_ref, img_ref = frames_from_events(ev, cfg)
     sizes = np.diff(packet_ends(ev.t, cfg), prepend=0)
     assert sizes.min() >= 200 and sizes.max() == 1000 and (sizes < 1000).sum() > 10
@@ -180,7 +184,7 @@ def test_time_capped_streaming_equals_batch_for_any_split(rng: np.random.Generat
 
 
 def test_bad_inputs_raise_with_actionable_messages(rng: np.random.Generator) -> None:
-    pk = Packetizer(PacketizerConfig(sensor_width=240, sensor_height=180))
+    pk = Packetizer(paper_framing(sensor_width=240, sensor_height=180))
     bad = EventArray.from_arrays(np.array([1, 2]), np.array([3, 240]), np.array([0, 0]),
                                  np.array([0, 0]))
     with pytest.raises(DatasetError, match='outside the 240x180 sensor'):
@@ -190,15 +194,15 @@ def test_bad_inputs_raise_with_actionable_messages(rng: np.random.Generator) -> 
         pk.push(EventArray.from_arrays(np.array([40]), np.array([1]), np.array([1]),
                                        np.array([0])))
     with pytest.raises(ConfigError, match='events_per_frame'):
-        PacketizerConfig(events_per_frame=0)
+        paper_framing(events_per_frame=0)
     with pytest.raises(ConfigError, match='downsample'):
-        PacketizerConfig(downsample=0.5)
+        paper_framing(downsample=0.5)
 
 
 def test_packetizing_rate_is_far_above_real_time(rng: np.random.Generator) -> None:
     """A loose in-suite bound (the benchmark measures the 20 M events/s target)."""
     ev = random_events(rng, 2_000_000)
-    pk = Packetizer(PacketizerConfig())
+    pk = Packetizer(paper_framing())
     t0 = time.perf_counter()
     for i in range(0, len(ev), 100_000):
         pk.push(ev[i:i + 100_000])
@@ -214,7 +218,7 @@ DAVIS = CameraCalibration(240, 180, 199.1, 198.8, 121.3, 89.6, (-0.12, 0.03, 0.0
 
 
 def _rectified(mode: str, calib: CameraCalibration = DAVIS, **kw: object) -> PacketizerConfig:
-    return with_calibration(PacketizerConfig(rectify=mode, **kw), calib)  # type: ignore[arg-type]
+    return with_calibration(paper_framing(rectify=mode, **kw), calib)  # type: ignore[arg-type]
 
 
 def test_undistort_inverts_distort() -> None:
@@ -249,7 +253,7 @@ DAVIS_ARGS = (240, 180, 199.1, 198.8, 121.3, 89.6, DAVIS.dist)
 def test_rectify_with_an_ideal_centred_camera_changes_nothing(rng: np.random.Generator) -> None:
     ideal = CameraCalibration(240, 180, 200.0, 200.0, 119.5, 89.5)
     ev = random_events(rng, 20_000)
-    t_ref, img_ref = frames_from_events(ev, PacketizerConfig())
+    t_ref, img_ref = frames_from_events(ev, paper_framing())
     t, img = frames_from_events(ev, _rectified('pinhole', ideal))
     assert t.tolist() == t_ref.tolist()
     np.testing.assert_array_equal(img, img_ref)
@@ -291,9 +295,9 @@ def test_events_rectified_outside_the_frame_are_counted_not_binned(
 
 def test_rectification_needs_a_matching_calibration() -> None:
     with pytest.raises(ConfigError, match='needs the camera calibration'):
-        Packetizer(PacketizerConfig(rectify='equidistant'))
+        Packetizer(paper_framing(rectify='equidistant'))
     with pytest.raises(ConfigError, match='rectify'):
-        PacketizerConfig(rectify='fisheye')
+        paper_framing(rectify='fisheye')
     with pytest.raises(DatasetError, match='346x260 sensor'):
         _rectified('pinhole', CameraCalibration(346, 260, 200.0, 200.0, 173.0, 130.0))
     with pytest.raises(ConfigError, match='5 plumb-bob'):
@@ -301,9 +305,9 @@ def test_rectification_needs_a_matching_calibration() -> None:
     with pytest.raises(ConfigError, match='both'):
         CalibrationConfig(fx=1.0)
     # explicit calib wins over the dataset's; no rectification ignores the calibration
-    own = PacketizerConfig(rectify='pinhole', calib=CalibrationConfig(fx=150.0, fy=150.0))
+    own = paper_framing(rectify='pinhole', calib=CalibrationConfig(fx=150.0, fy=150.0))
     assert with_calibration(own, DAVIS) is own
-    assert with_calibration(PacketizerConfig(), DAVIS) == PacketizerConfig()
+    assert with_calibration(paper_framing(), DAVIS) == paper_framing()
     assert _rectified('equidistant').calib.cx == 121.3
 
 
@@ -332,7 +336,7 @@ def test_denoising_drops_the_noise_keeps_the_edge(rng: np.random.Generator) -> N
     kept; a noise event's support spans 5-10 ms, so 8 neighbours at 1 Hz support about 8 % of
     them (a little more next to the edge; measured 9.4-10.3 % on three seeds)."""
     ev, edge = edge_and_noise(rng)
-    cfg = PacketizerConfig(events_per_frame=1000, denoise_ms=5.0)
+    cfg = paper_framing(events_per_frame=1000, denoise_ms=5.0)
     pk = Packetizer(cfg)
     frames = pk.push(ev)
     kept = len(ev) - pk.denoised - pk.denoise_pending
@@ -341,13 +345,13 @@ def test_denoising_drops_the_noise_keeps_the_edge(rng: np.random.Generator) -> N
     # frames of the denoised events; columns 0-7 (sensor x < 20) see noise only
     t_ref, img_ref = frames_from_events(ev, cfg)
     np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref[:len(frames)])
-    _, img_raw = frames_from_events(ev, PacketizerConfig(events_per_frame=1000))
+    _, img_raw = frames_from_events(ev, paper_framing(events_per_frame=1000))
     assert img_ref[:, :, :8].sum() <= 0.2 * img_raw[:, :, :8].sum()
 
 
 def test_denoised_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
     ev, _ = edge_and_noise(rng, 0.1)
-    cfg = PacketizerConfig(events_per_frame=500, denoise_ms=2.0)
+    cfg = paper_framing(events_per_frame=500, denoise_ms=2.0)
     t_ref, img_ref = frames_from_events(ev, cfg)
     pk = Packetizer(cfg)
     cuts = np.sort(rng.choice(np.arange(1, len(ev)), 80, replace=False))
@@ -373,8 +377,8 @@ def test_time_capped_packets_hold_for_any_stream_and_split(
     m = min(m, k)
     t = np.cumsum(np.asarray(gaps, np.int64)) + 10**6
     n = len(t)
-    cfg = PacketizerConfig(events_per_frame=k, min_frame_events=m, max_frame_ms=span / 1e6,
-                           sensor_width=4, sensor_height=4, downsample=1.0)
+    cfg = paper_framing(events_per_frame=k, min_frame_events=m, max_frame_ms=span / 1e6,
+                        sensor_width=4, sensor_height=4, downsample=1.0)
     ends = packet_ends(t, cfg)
     starts = ends - np.diff(ends, prepend=0)
     for s, e in zip(starts.tolist(), ends.tolist(), strict=True):

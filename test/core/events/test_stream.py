@@ -9,7 +9,7 @@ import pytest
 
 from hrn_vo_ros.core.clock import ClockConfig, Recent
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import CalibrationConfig, PacketizerConfig
+from hrn_vo_ros.core.events.frames import CalibrationConfig, paper_framing
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.core.events.stream import packet_problem, PacketStream, StreamOutput
 from hrn_vo_ros.errors import HrnVoError
@@ -17,7 +17,7 @@ from hrn_vo_ros.errors import HrnVoError
 MS = 1_000_000
 S = 1_000_000_000
 T0 = 1_760_000_000 * S          # header clock (ROS time)
-CFG = PacketizerConfig(events_per_frame=100, sensor_width=40, sensor_height=30, downsample=1.0)
+CFG = paper_framing(events_per_frame=100, sensor_width=40, sensor_height=30, downsample=1.0)
 
 
 def packet(t0_ns: int, n: int = 100, *, w: int = 40, h: int = 30,
@@ -134,8 +134,8 @@ def test_sensor_size_from_messages_waits_then_restarts_on_a_change() -> None:
     assert kinds(out) == [('reject', 'sensor_size')]
 
 
-RECT = PacketizerConfig(events_per_frame=100, sensor_width=40, sensor_height=30,
-                        downsample=1.0, rectify='pinhole')
+RECT = paper_framing(events_per_frame=100, sensor_width=40, sensor_height=30,
+                     downsample=1.0, rectify='pinhole')
 CALIB = CameraCalibration(width=40, height=30, fx=30.0, fy=30.0, cx=20.0, cy=15.0)
 
 
@@ -164,17 +164,17 @@ def test_a_calibration_no_packetizer_takes_changes_nothing() -> None:
 
 
 def test_known_calibration_needs_no_camera_info() -> None:
-    known = PacketizerConfig(events_per_frame=100, sensor_width=40, sensor_height=30,
-                             downsample=1.0, rectify='pinhole',
-                             calib=CalibrationConfig(fx=30.0, fy=30.0, cx=20.0, cy=15.0))
+    known = paper_framing(events_per_frame=100, sensor_width=40, sensor_height=30,
+                          downsample=1.0, rectify='pinhole',
+                          calib=CalibrationConfig(fx=30.0, fy=30.0, cx=20.0, cy=15.0))
     assert PacketStream(known).packetizer is not None
 
 
 def test_reconfigure_restarts_only_a_running_packetizer() -> None:
     stream = PacketStream(CFG)
     push(stream, 5 * S, ev=packet(5 * S, 150))
-    new = PacketizerConfig(events_per_frame=30, sensor_width=40, sensor_height=30,
-                           downsample=1.0)
+    new = paper_framing(events_per_frame=30, sensor_width=40, sensor_height=30,
+                        downsample=1.0)
     assert stream.reconfigure(new)
     assert stream.packetizer is not None and stream.packetizer.pending == 0
     waiting = PacketStream(RECT)

@@ -14,7 +14,7 @@ from hrn_vo_ros.core.hrn.backends import (
     ResonatorBackend,
     SpikingDiagnostics,
 )
-from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.config import paper_config
 from hrn_vo_ros.errors import ConfigError
 
 POSE = (4.0, 2.0, 0.2)
@@ -30,7 +30,7 @@ def frames() -> list[np.ndarray]:
 
 @pytest.fixture(scope='module')
 def results(frames: list[np.ndarray]) -> dict[str, np.ndarray]:
-    cfg = from_dict(ResonatorConfig, {'map': {'learn': False}})
+    cfg = paper_config({'map': {'learn': False}})
     out = {}
     for name in BACKENDS:
         b = make_backend(cfg, rng=np.random.default_rng(1), backend=name)
@@ -54,7 +54,7 @@ def test_spiking_matches_float_once_converged(results: dict[str, np.ndarray]) ->
 
 
 def test_registry_and_diagnostics() -> None:
-    cfg = ResonatorConfig()
+    cfg = paper_config()
     spiking = make_backend(cfg, rng=np.random.default_rng(0),
                            backend=BackendConfig(name='spiking'))
     assert isinstance(spiking, SpikingDiagnostics)

@@ -9,7 +9,7 @@ import pytest
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.hrn import fhrr
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend
-from hrn_vo_ros.core.hrn.config import CleanupConfig, ResonatorConfig
+from hrn_vo_ros.core.hrn.config import CleanupConfig, paper_config, ResonatorConfig
 from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.shared import (
     blend_state,
@@ -33,7 +33,7 @@ def assert_close(got: np.ndarray, want: tuple[float, ...] | list[float],
 
 
 def make(over: dict | None = None, seed: int = 1) -> HRN:
-    return HRN(from_dict(ResonatorConfig, over or {}), rng=np.random.default_rng(seed))
+    return HRN(paper_config(over or {}), rng=np.random.default_rng(seed))
 
 
 def gyro_between(p0: np.ndarray, p1: np.ndarray, f: float = FOCAL) -> np.ndarray:
@@ -115,7 +115,7 @@ def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
     hrn = make({'cleanup': {'gamma': 1.0}, 'focal_px': FOCAL})
     for i in range(20):
         e0 = hrn.step(frame, i)
-    hrn2 = HRN(from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.0},
+    hrn2 = HRN(paper_config({'cleanup': {'gamma': 0.0},
                                            'focal_px': FOCAL}),
                rng=np.random.default_rng(1))
     hrn2._engine, hrn2._started, hrn2._point = hrn._engine, True, hrn._point
@@ -234,7 +234,7 @@ def test_a_blank_cleanup_input_keeps_the_states(path: str) -> None:
     over = {'path': 'fast'} if path != 'dense' else {
         'path': 'dense', 'width': 24, 'height': 18, 'logpolar': {'n_theta': 24, 'n_rho': 18}}
     if path == 'spiking':
-        hrn = make_backend(from_dict(ResonatorConfig, over), rng=np.random.default_rng(1),
+        hrn = make_backend(paper_config(over), rng=np.random.default_rng(1),
                            backend=BackendConfig('spiking', SpikingConfig()))
     else:
         hrn = make(over)
@@ -289,17 +289,17 @@ def test_bad_inputs_and_configs() -> None:
     with pytest.raises(ConfigError, match='path fast needs'):
         ResonatorConfig(codebook=from_dict(type(ResonatorConfig().codebook), {'kind': 'random'}))
     with pytest.raises(ConfigError, match='mu1 \\+ mu2'):
-        from_dict(ResonatorConfig, {'map': {'mu1': 0.9, 'mu2': 0.2}})
+        paper_config({'map': {'mu1': 0.9, 'mu2': 0.2}})
     with pytest.raises(ConfigError, match='nonlinearity'):
-        from_dict(ResonatorConfig, {'cleanup': {'nonlinearity': 'tanh'}})
+        paper_config({'cleanup': {'nonlinearity': 'tanh'}})
     with pytest.raises(ConfigError, match='smaller than'):
-        from_dict(ResonatorConfig, {'codebook': {'canvas_width': 50}})
+        paper_config({'codebook': {'canvas_width': 50}})
     with pytest.raises(ConfigError, match='unknown'):
-        from_dict(ResonatorConfig, {'map': {'mu3': 0.1}})
+        paper_config({'map': {'mu3': 0.1}})
     with pytest.raises(ConfigError, match='camera_from_imu'):
-        from_dict(ResonatorConfig, {'imu': {'camera_from_imu': [1.0, 0.0]}})
+        paper_config({'imu': {'camera_from_imu': [1.0, 0.0]}})
     with pytest.raises(ConfigError, match='refine_input'):
-        from_dict(ResonatorConfig, {'readout': {'refine_input': 'h,x'}})
+        paper_config({'readout': {'refine_input': 'h,x'}})
 
 
 def test_cleanup_nonlinearities_and_population_readout() -> None:
@@ -338,26 +338,26 @@ def test_refine_finds_fractional_exponents_and_removes_pixel_locking() -> None:
 
 
 def test_imu_gamma_replaces_cleanup_gamma_only_with_the_imu_on() -> None:
-    cfg = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'gamma': 0.3}})
+    cfg = paper_config({'cleanup': {'gamma': 0.9}, 'imu': {'gamma': 0.3}})
     assert state_gamma(cfg) == 0.9
-    on = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9},
+    on = paper_config({'cleanup': {'gamma': 0.9},
                                      'imu': {'gamma': 0.3, 'enabled': True}})
     assert state_gamma(on) == 0.3
-    unset = from_dict(ResonatorConfig, {'cleanup': {'gamma': 0.9}, 'imu': {'enabled': True}})
+    unset = paper_config({'cleanup': {'gamma': 0.9}, 'imu': {'enabled': True}})
     assert state_gamma(unset) == 0.9
 
 
 def test_imu_mu1_replaces_the_map_weight_only_with_the_imu_on() -> None:
-    cfg = from_dict(ResonatorConfig, {'map': {'mu1': 0.97}, 'imu': {'mu1': 0.985}})
+    cfg = paper_config({'map': {'mu1': 0.97}, 'imu': {'mu1': 0.985}})
     assert map_mu1(cfg) == 0.97
-    on = from_dict(ResonatorConfig, {'map': {'mu1': 0.97}, 'imu': {'mu1': 0.985, 'enabled': True},
+    on = paper_config({'map': {'mu1': 0.97}, 'imu': {'mu1': 0.985, 'enabled': True},
                                      'focal_px': FOCAL})
     assert map_mu1(on) == 0.985
-    unset = from_dict(ResonatorConfig, {'map': {'mu1': 0.97}, 'imu': {'enabled': True},
+    unset = paper_config({'map': {'mu1': 0.97}, 'imu': {'enabled': True},
                                         'focal_px': FOCAL})
     assert map_mu1(unset) == 0.97
     with pytest.raises(ConfigError, match=r'imu.mu1 \+ map.mu2'):
-        from_dict(ResonatorConfig, {'map': {'mu2': 0.1}, 'imu': {'mu1': 0.95}})
+        paper_config({'map': {'mu2': 0.1}, 'imu': {'mu1': 0.95}})
 
 
 def test_the_map_learns_with_imu_mu1_while_the_gyro_predicts() -> None:
@@ -388,7 +388,7 @@ def test_imu_block_iterations_replaces_the_map_block_only_with_the_imu_on(
     0 -> frame 0; -1: the map's)."""
     cfg = {'map': {'block_iterations': 10}, 'cleanup': {'iterations_per_frame': 2},
            'imu': {'enabled': imu, 'block_iterations': imu_block}, 'focal_px': FOCAL}
-    assert map_block(from_dict(ResonatorConfig, cfg)) == (imu_block if imu and imu_block >= 0
+    assert map_block(paper_config(cfg)) == (imu_block if imu and imu_block >= 0
                                                            else 10)
     hrn = make(cfg)
     traj = trajectory(10, amp_xy=1.0)

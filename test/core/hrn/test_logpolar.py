@@ -40,7 +40,7 @@ def test_rotation_and_zoom_become_shifts_of_the_log_polar_image() -> None:
 
 
 def test_reverse_resampling_recovers_the_image_inside_r_max() -> None:
-    g = make_geometry(64, 48, 0, 0, LogPolarConfig(n_theta=128, n_rho=64, r_max=23))
+    g = make_geometry(64, 48, 0, 0, LogPolarConfig(n_theta=128, n_rho=64, r_min=1.0, r_max=23))
     img = ndimage.gaussian_filter(np.random.default_rng(0).random((48, 64)), 2.0)
     back = (lp_to_cart_matrix(g) @ (cart_to_lp_matrix(g) @ img.ravel())).reshape(48, 64)
     yy, xx = np.mgrid[0:48, 0:64]

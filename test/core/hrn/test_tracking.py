@@ -6,8 +6,7 @@ from hrn_synth import event_frame, random_scene, trajectory
 import numpy as np
 import pytest
 
-from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.hrn.config import ResonatorConfig, TrackingConfig
+from hrn_vo_ros.core.hrn.config import paper_config, TrackingConfig
 from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.tracking import DENSE_RUN
 from hrn_vo_ros.core.odometry.estimate import Estimate
@@ -26,7 +25,7 @@ BASE = {'codebook': {'canvas_width': 128, 'canvas_height': 96, 'kernel_sigma': 0
 def make(over: dict | None = None, seed: int = 1) -> HRN:
     cfg = dict(BASE)
     cfg.update(over or {})
-    return HRN(from_dict(ResonatorConfig, cfg), rng=np.random.default_rng(seed))
+    return HRN(paper_config(cfg), rng=np.random.default_rng(seed))
 
 
 def run(hrn: HRN, scene: np.ndarray, poses: np.ndarray, rng: np.random.Generator,
@@ -241,7 +240,7 @@ def test_with_the_gyro_a_relocalisation_stays_near_its_prediction(gyro_agrees: b
 def test_spiking_backend_shares_the_quality_and_state() -> None:
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
-    cfg = from_dict(ResonatorConfig, {**BASE, 'width': 48, 'height': 36,
+    cfg = paper_config({**BASE, 'width': 48, 'height': 36,
                                       'logpolar': {'n_theta': 64, 'n_rho': 27}})
     hrn = SpikingHRN(cfg, rng=np.random.default_rng(1))
     est = [hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng, width=48, height=36), i)

@@ -8,8 +8,7 @@ from hrn_synth import event_frame, random_scene
 import numpy as np
 import pytest
 
-from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.hrn.config import ResonatorConfig
+from hrn_vo_ros.core.hrn.config import paper_config
 from hrn_vo_ros.core.spiking.accounting import cpu_ops, IterationAccount, LoihiCosts
 from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
@@ -320,7 +319,7 @@ def track(b: SpikingHRN, traj: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize('pose', [(4.0, -3.0, 0.0), (0.0, 0.0, 0.35)])
 def test_spiking_hrn_recovers_a_known_shift_and_roll(spiking: SpikingConfig,
                                                      pose: tuple[float, ...]) -> None:
-    cfg = from_dict(ResonatorConfig, {'map': {'learn': False}})
+    cfg = paper_config({'map': {'learn': False}})
     traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [(*pose, 0.0)] * 40)
     b = SpikingHRN(cfg, rng=np.random.default_rng(1), spiking=spiking)
     est = track(b, traj)
@@ -339,7 +338,7 @@ def test_spiking_hrn_recovers_a_known_shift_and_roll(spiking: SpikingConfig,
 
 
 def test_spiking_backend_needs_the_fast_path() -> None:
-    cfg = from_dict(ResonatorConfig, {'path': 'dense'})
+    cfg = paper_config({'path': 'dense'})
     with pytest.raises(ConfigError, match='path'):
         SpikingHRN(cfg, rng=np.random.default_rng(0))
 
@@ -368,7 +367,7 @@ def test_spiking_imu_prediction_shifts_the_state_spikes_like_the_float_backend()
     """A gyro increment moves the spiking states (re-encoded spikes) as it moves the float ones."""
     from hrn_vo_ros.core.hrn.network import HRN
     focal = 80.0
-    cfg = from_dict(ResonatorConfig, {'map': {'learn': False},
+    cfg = paper_config({'map': {'learn': False},
                                       'focal_px': focal, 'imu': {'enabled': True}})
     moved = (7.0, -5.0, 0.0, 0.0)
     gyro = np.array([-moved[1] / focal, moved[0] / focal, 0.0])   # camera turn for that shift
@@ -419,7 +418,7 @@ def test_the_dc_neuron_keeps_the_similarities_of_a_spectrum(precision: str) -> N
 
 
 def test_drive_readout_uses_the_similarity_neurons() -> None:
-    cfg = from_dict(ResonatorConfig, {'map': {'learn': False}, 'readout': {'source': 'drive'}})
+    cfg = paper_config({'map': {'learn': False}, 'readout': {'source': 'drive'}})
     traj = np.array([(0.0, 0.0, 0.0, 0.0)] + [(4.0, -3.0, 0.0, 0.0)] * 30)
     b = SpikingHRN(cfg, rng=np.random.default_rng(1))
     est = track(b, traj)
