@@ -28,9 +28,11 @@ def hrn_vo(*args: str) -> subprocess.CompletedProcess[str]:
 #: live.yaml as it is: no calibration needed, the canvas follows each sensor's frame size
 #: (240x180 and 346x260 here, frames 96x72 and 139x104 at downsample 2.5)
 LIVE = ['--config', str(ROOT / 'config' / 'live.yaml')]
+LIVE_TRANSLATION = ['--config', str(ROOT / 'config' / 'live_translation.yaml')]
 
 
-@pytest.mark.parametrize('sets', [SETS, LIVE], ids=['shapes_rotation', 'live'])
+@pytest.mark.parametrize('sets', [SETS, LIVE, LIVE_TRANSLATION],
+                         ids=['shapes_rotation', 'live', 'live_translation'])
 @pytest.mark.parametrize(('name', 'events'), [('test_events_1', 343474),
                                               ('test_events_2', 571266)])
 def test_driver_bag(tmp_path: Path, name: str, events: int, sets: list[str]) -> None:

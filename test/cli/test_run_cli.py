@@ -342,6 +342,20 @@ def test_the_live_config_runs_the_rotation_network_without_a_calibration() -> No
     assert geometry(defaults[1]) == g[0]
 
 
+def test_the_live_translation_config_runs_the_translation_network_without_a_calibration(
+        ) -> None:
+    """config/live_translation.yaml takes every algorithm setting of shapes_translation.yaml
+    but the rectification, with the canvas relative to the frame (the same 128x96 for 96x72)."""
+    cfgs = [load_configs(ROOT / 'config' / name) for name in ('live_translation.yaml',
+                                                                'shapes_translation.yaml')]
+    live, tr = ([{p.name: p.default for p in describe(c)} for c in pair] for pair in cfgs)
+    differ = {k for a, b in zip(live, tr, strict=True) for k in a if a[k] != b[k]}
+    assert differ == {'rectify', 'codebook.canvas_width', 'codebook.canvas_height',
+                      'codebook.canvas_scale'}, differ
+    assert live[0]['rectify'] == 'none' and live[1]['scale.enabled'] is True
+    assert geometry(cfgs[0][1]) == geometry(cfgs[1][1])
+
+
 def test_dataset_configs_derive_what_run_and_graph_share(dataset: Path) -> None:
     """Sensor size, frame size and focal length from the dataset; the sphere check."""
     rot = ROOT / 'config/shapes_rotation.yaml'
