@@ -104,6 +104,12 @@ class ResonatorNodeConfig:
     diagnostics_window_s: float = param(10.0, 'Diagnostics WARN while a message was rejected '
                                         'within this many seconds (wall time)', lo=0.0,
                                         hi=1e6)
+    frame_size: str = param('parameters', 'Frame size of the resonator: parameters (width/'
+                            'height; frames of another size are dropped, ERROR naming what to '
+                            'set) or frames (the size of the first frame, and of any later '
+                            'frame of another size, which restarts tracking; a canvas given '
+                            'by codebook.canvas_scale follows)', choices=('parameters', 'frames'),
+                            read_only=True)
     odometry: OdometryConfig = nested(OdometryConfig, 'Calibration to metres/radians and '
                                       'the covariance model')
 

@@ -10,7 +10,8 @@ at most ``map_image_rate_hz``), ``/tf_static`` (``publish_static_tf``: ``base_fr
 ``camera_frame_id`` from ``odometry.mount_*``, with ``imu_frame_id`` also ``camera_frame_id`` →
 ``imu_frame_id`` from ``imu.camera_from_imu``) and ``/diagnostics`` (WARN while degraded or
 after a rejected message or a time reset, ERROR while lost or while frames of another size than
-``width`` x ``height`` arrive, the message naming the values to set).
+``width`` x ``height`` arrive, the message naming the values to set; with ``frame_size:
+frames`` the resonator takes the size of the frames instead, restarting tracking when it changes).
 
 The logic is ``core/live.py`` (stamps going back by more than ``clock_tolerance_s`` restart a
 stream's time state; per frame the step ``hrn-vo run`` takes) and ``core/odometry/publish.py``
@@ -22,6 +23,7 @@ names); ``loihi_node`` is this node preset to ``backend.name: spiking``.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import replace
 import sys
 import time
 from typing import Any
@@ -59,6 +61,7 @@ class ResonatorNode(Node):
         self._backend = declare_config(self, BackendConfig, prefix='backend.',
                                        on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
+        self._size = (cfg.width, cfg.height)       # the frame size (frame_size: frames adopts)
         self.stats = NodeStats()
         self._live = LiveOdometry(self._make_hrn(cfg), publish.GyroGate(
             cfg.imu.camera_from_imu, max_samples=opts.imu_buffer_samples,
@@ -81,8 +84,9 @@ class ResonatorNode(Node):
             self.create_subscription(Imu, '~/imu', self._on_imu, qos(
                 opts.imu_depth, reliable=opts.imu_reliable, keep_all=opts.imu_reliable))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
-        self.get_logger().info(f'{cfg.width}x{cfg.height} frames, factors '
-                               f'{"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
+        self.get_logger().info(f'{cfg.width}x{cfg.height} frames' + (
+            ' (or the size of the frames)' if opts.frame_size == 'frames' else '')
+            + f', factors {"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
 
     @property
     def _pipeline(self) -> OdometryPipeline[ResonatorBackend]:
@@ -103,7 +107,7 @@ class ResonatorNode(Node):
     def _settings(self) -> LiveSettings:
         """The settings ``core/live.py`` reads now (parameters may change between messages)."""
         opts, cfg = self._opts.config, self._algo.config
-        return LiveSettings(cfg.width, cfg.height, cfg.imu.enabled, 'z' in self._hrn.factors,
+        return LiveSettings(*self._size, cfg.imu.enabled, 'z' in self._hrn.factors,
                             opts.odometry, cfg.focal_px, opts.lost_variance, opts.min_quality,
                             opts.imu_timeout_s, cfg.imu.camera_from_imu)
 
@@ -122,8 +126,28 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
+        try:
+            cfg = replace(cfg, width=self._size[0], height=self._size[1])   # adopted size
+        except HrnVoError:
+            self._size = (cfg.width, cfg.height)
         self._live.reconfigured(self._make_hrn(cfg))
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
+
+    def _adopt_size(self, width: int, height: int) -> None:
+        """``frame_size: frames``: a resonator for frames of ``width`` x ``height`` (tracking
+        restarts); when the config cannot take that size, the frames are dropped as
+        mismatched (ERROR) and the reason is logged."""
+        try:
+            cfg = replace(self._algo.config, width=width, height=height)
+        except HrnVoError as err:                   # the frame is then dropped (ERROR)
+            self.get_logger().warning(
+                f'frames are {width}x{height}; the resonator cannot take that size: {err}',
+                throttle_duration_sec=self._opts.config.log_throttle_s)
+            return
+        self._size = (width, height)
+        self._live.reconfigured(self._make_hrn(cfg))
+        self.get_logger().warning(f'frames are {width}x{height}: the resonator takes that size '
+                                  '(frame_size: frames); tracking starts from a new map')
 
     def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')
@@ -132,6 +156,9 @@ class ResonatorNode(Node):
         except HrnVoError as err:
             self._reject('decode', err)
             return
+        if (self._opts.config.frame_size == 'frames'
+                and image.shape != (self._size[1], self._size[0])):
+            self._adopt_size(image.shape[1], image.shape[0])
         self._emit(self._live.frame(t_ns, image, self._settings()))
 
     def _on_imu(self, msg: Imu) -> None:

@@ -214,6 +214,36 @@ def test_frame_size_mismatch_is_an_error_naming_what_to_set(
     assert st.values['bad_size'] == '2' and not p.odoms
 
 
+def test_frame_size_frames_takes_the_size_of_the_frames(
+        ros: list[Node], rng: np.random.Generator) -> None:
+    # live.yaml: any sensor; 640x480 at downsample 5 gives 128x96 frames, then a 320x240
+    # camera (a driver restarted with another sensor) 64x48 ones
+    p = start(ros, packetizer(sensor_size='messages', downsample=5.0),
+              resonator(frame_size='frames'))
+    for k in range(3):
+        p.ev_pub.publish(sensor_packet(rng, 2 * PER_FRAME, k, 10**9 + k * 10**8, 640, 480))
+    assert p.wait(lambda: len(p.odoms) == 6)
+    for k in range(3, 6):
+        p.ev_pub.publish(sensor_packet(rng, 2 * PER_FRAME, k, 10**9 + k * 10**8, 320, 240))
+    assert p.wait(lambda: len(p.odoms) == 12)
+    assert [(f.width, f.height) for f in p.frames] == [(128, 96)] * 6 + [(64, 48)] * 6
+    assert p.wait(lambda: (p.last('resonator_node') or Status(OK, '', {})).values.get(
+        'estimates_out') == '12')
+    st = p.last('resonator_node')       # random events: tracking degrades (WARN), no ERROR
+    assert st is not None and st.level != ERROR and 'bad_size' not in st.values, st
+
+
+def test_frame_size_frames_drops_frames_the_config_cannot_take(
+        ros: list[Node], rng: np.random.Generator) -> None:
+    # a fixed 100x80 canvas takes the 96x72 frames of its parameters, not 128x96 ones
+    p = start(ros, packetizer(sensor_size='messages', downsample=5.0),
+              resonator(frame_size='frames', codebook__canvas_width=100,
+                        codebook__canvas_height=80))
+    p.ev_pub.publish(sensor_packet(rng, 2 * PER_FRAME, 0, 10**9, 640, 480))
+    st = p.wait_level('resonator_node', ERROR)
+    assert 'frames are 128x96' in st.message and st.values['bad_size'] == '2' and not p.odoms
+
+
 class Scripted:
     """An estimator whose estimates have the given quality and state, h growing by 1 px."""
 

@@ -204,12 +204,13 @@ class GyroGate:
 def size_mismatch_text(w: int, h: int, width: int, height: int) -> str:
     """What to set when frames are ``w`` x ``h`` and the resonator takes ``width`` x ``height``.
 
-    The usual cause is ``sensor_size: messages`` (config/live.yaml): the packetizer's frame
-    is ceil(sensor / downsample), which for another camera is not the resonator's fixed size.
+    The usual cause is ``sensor_size: messages``: the packetizer's frame is ceil(sensor /
+    downsample), which for another camera is not the resonator's fixed size (the live configs
+    take the frames' size instead, ``frame_size: frames``).
     """
     return (f'frames are {w}x{h}, width/height are {width}x{height}: set the resonator '
-            f'width: {w} and height: {h}, or the packetizer downsample so that its frame is '
-            f'{width}x{height} (downsample = sensor width / {width})')
+            f'width: {w} and height: {h} (or frame_size: frames), or the packetizer downsample '
+            f'so that its frame is {width}x{height} (downsample = sensor width / {width})')
 
 
 def imu_frame_warning(frame_id: str, imu_frame_id: str) -> str | None:

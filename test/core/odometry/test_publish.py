@@ -130,7 +130,7 @@ def test_gyro_gate_holds_frames_until_covered_bounded_and_forced() -> None:
 def test_check_texts() -> None:
     text = size_mismatch_text(128, 96, 96, 72)
     assert 'frames are 128x96, width/height are 96x72' in text
-    assert 'width: 128 and height: 96' in text
+    assert 'width: 128 and height: 96 (or frame_size: frames)' in text
     assert imu_frame_warning('imu_link', '') is None
     assert imu_frame_warning('imu_link', 'imu_link') is None
     warning = imu_frame_warning('imu', 'imu_link')
