@@ -260,6 +260,12 @@ class TrackingConfig:
                               'among the first 3 poor frames in a row (the noise a packet '
                               'gathers over a pause; a longer run is faster motion; 0: off)',
                               lo=0.0, hi=1000.0)
+    fill_gain: float = param(0.0, 'once tracked, a frame is skipped as noise only above the '
+                             'larger of max_fill and this many times the running mean '
+                             'on-pixel fraction of tracked frames (a scene whose moving frames '
+                             'are denser than max_fill stays tracked; the noise frames of a '
+                             'still camera fill about twice as many pixels); 0: max_fill only',
+                             lo=0.0, hi=100.0)
     gyro_poor: bool = param(True, 'the gyro carries the states (rotation): a poor frame '
                             '(lost, or degraded below "degrade") leaves the states and the '
                             "output at the gyro's prediction instead of its own readout; off "

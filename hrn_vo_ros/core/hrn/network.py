@@ -296,7 +296,7 @@ class HRN(Prediction):
         """The checked (and sphere-warped) frame, its on-pixel count and that before the warp
         (which spreads each pixel over up to four); None: skip it."""
         c = self.cfg
-        img, usable = check_event_frame(image, c.width, c.height, c.max_fill, 'resonator')
+        img, usable = check_event_frame(image, c.width, c.height, self._max_fill(), 'resonator')
         if not usable:
             return None
         img = self._hot.apply(img)
@@ -310,6 +310,15 @@ class HRN(Prediction):
             if not n_on:                  # every event warped off the frame: nothing to use
                 return None
         return img, n_on, n_in
+
+    def _max_fill(self) -> float:
+        """The fill above which a frame is skipped: ``max_fill``, or once tracked with
+        ``tracking.fill_gain``, that many times the running mean fill if larger."""
+        c = self.cfg
+        density = self.tracker.density if c.tracking.enabled else None
+        if c.tracking.fill_gain <= 0.0 or density is None:
+            return c.max_fill
+        return min(1.0, max(c.max_fill, c.tracking.fill_gain * density / (c.width * c.height)))
 
     def _resonate(self, S: Any) -> tuple[dict[str, Real], dict[str, float], dict[str, float],
                                          dict[str, float]]:
