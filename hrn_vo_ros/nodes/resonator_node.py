@@ -146,8 +146,12 @@ class ResonatorNode(Node):
             return
         self._size = (width, height)
         self._live.reconfigured(self._make_hrn(cfg))
-        self.get_logger().warning(f'frames are {width}x{height}: the resonator takes that size '
-                                  '(frame_size: frames); tracking starts from a new map')
+        ratio = width * height / (96 * 72)
+        self.get_logger().warning(
+            f'frames are {width}x{height}: the resonator takes that size (frame_size: frames); '
+            'tracking starts from a new map' + (
+                f'; {ratio:.1f}x the pixels of the validated 96x72 frame: more time per frame '
+                '(a larger packetizer downsample gives smaller frames)' if ratio > 1.5 else ''))
 
     def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')

@@ -198,9 +198,9 @@ class PacketStream:
             out.notes.append(Note('info', 'sensor_size', (
                 f'sensor size {w}x{h} from the event packets'
                 + ('' if first else ' (changed: packetizer restarted)')
-                + f': frames are {fw}x{fh} (downsample {ds:g}); the resonator width/height '
-                'must be the same (config/live.yaml: 96x72 needs downsample '
-                f'{w / 96:.4g} for this sensor)')))
+                + f': frames are {fw}x{fh} (downsample {ds:g}); a resonator with frame_size: '
+                'frames (the live configs) takes that size, else its width/height must be the '
+                f'same (96x72, the validated size, needs downsample {w / 96:.4g} here)')))
             if self.calib is not None and (self.calib.width, self.calib.height) != (w, h):
                 out.notes.append(Note('warn', 'camera_info_size', 'camera_info is for another '
                                       'sensor size: waiting for a matching one'))
