@@ -421,17 +421,8 @@ PAPER_NETWORK: Mapping[str, Scalar] = MappingProxyType({
 })
 
 
-def _dotted(data: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in data.items():
-        if isinstance(value, Mapping):
-            out.update(_dotted(value, f'{prefix}{key}.'))
-        else:
-            out[prefix + key] = value
-    return out
-
-
 def paper_config(overrides: Mapping[str, Any] | None = None) -> ResonatorConfig:
     """The paper's network (:data:`PAPER_NETWORK`), with ``overrides`` (nested or dotted keys,
-    as :func:`~hrn_vo_ros.core.configbase.from_dict` takes them) on top."""
-    return from_dict(ResonatorConfig, {**PAPER_NETWORK, **_dotted(overrides or {})})
+    as :func:`~hrn_vo_ros.core.configbase.from_dict` takes them, which merges a section given
+    as a dict into the dotted keys before it) on top."""
+    return from_dict(ResonatorConfig, {**PAPER_NETWORK, **(overrides or {})})
