@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import time
 
 import numpy as np
@@ -85,6 +85,23 @@ def make_resonator(cfg: ResonatorConfig, seed: int, backend: BackendConfig
     """
     cfg, why = without_unset_sphere(cfg)
     return make_backend(cfg, rng=np.random.default_rng(seed), backend=backend), why
+
+
+def sized_config(cfg: ResonatorConfig, width: int, height: int
+                 ) -> tuple[ResonatorConfig | None, str]:
+    """``cfg`` for frames of ``width`` x ``height`` (``frame_size: frames``; a canvas given by
+    ``canvas_scale`` follows) and the text to log; ``(None, why)`` when the config cannot take
+    that size (a fixed canvas smaller than the frame)."""
+    try:
+        sized = replace(cfg, width=width, height=height)
+    except HrnVoError as err:
+        return None, f'frames are {width}x{height}; the resonator cannot take that size: {err}'
+    ratio = width * height / (96 * 72)
+    return sized, (f'frames are {width}x{height}: the resonator takes that size (frame_size: '
+                   'frames); tracking starts from a new map' + (
+                       f'; {ratio:.1f}x the pixels of the validated 96x72 frame: more time '
+                       'per frame (a larger packetizer downsample gives smaller frames)'
+                       if ratio > 1.5 else ''))
 
 
 class LiveOdometry:

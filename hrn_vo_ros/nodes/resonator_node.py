@@ -23,7 +23,6 @@ names); ``loihi_node`` is this node preset to ``backend.name: spiking``.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import replace
 import sys
 import time
 from typing import Any
@@ -40,7 +39,7 @@ from hrn_vo_ros.core.clock import RateLimit, Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
-from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator
+from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator, sized_config
 from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.core.pipeline import OdometryPipeline
 from hrn_vo_ros.errors import HrnVoError
@@ -126,32 +125,23 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        try:
-            cfg = replace(cfg, width=self._size[0], height=self._size[1])   # adopted size
-        except HrnVoError:
+        sized, _ = sized_config(cfg, *self._size)          # keep an adopted frame size
+        if sized is None:
             self._size = (cfg.width, cfg.height)
-        self._live.reconfigured(self._make_hrn(cfg))
+        self._live.reconfigured(self._make_hrn(sized or cfg))
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
     def _adopt_size(self, width: int, height: int) -> None:
         """``frame_size: frames``: a resonator for frames of ``width`` x ``height`` (tracking
         restarts); when the config cannot take that size, the frames are dropped as
         mismatched (ERROR) and the reason is logged."""
-        try:
-            cfg = replace(self._algo.config, width=width, height=height)
-        except HrnVoError as err:                   # the frame is then dropped (ERROR)
-            self.get_logger().warning(
-                f'frames are {width}x{height}; the resonator cannot take that size: {err}',
-                throttle_duration_sec=self._opts.config.log_throttle_s)
+        cfg, text = sized_config(self._algo.config, width, height)
+        if cfg is None:                             # the frame is then dropped (ERROR)
+            self.get_logger().warning(text, throttle_duration_sec=self._opts.config.log_throttle_s)
             return
         self._size = (width, height)
         self._live.reconfigured(self._make_hrn(cfg))
-        ratio = width * height / (96 * 72)
-        self.get_logger().warning(
-            f'frames are {width}x{height}: the resonator takes that size (frame_size: frames); '
-            'tracking starts from a new map' + (
-                f'; {ratio:.1f}x the pixels of the validated 96x72 frame: more time per frame '
-                '(a larger packetizer downsample gives smaller frames)' if ratio > 1.5 else ''))
+        self.get_logger().warning(text)
 
     def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')

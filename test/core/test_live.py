@@ -8,8 +8,10 @@ from typing import Any
 
 import numpy as np
 
+from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.events.stream import Note
-from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, Step
+from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig
+from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, sized_config, Step
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.odometry.odometry import OdometryConfig
 from hrn_vo_ros.core.odometry.publish import GyroGate
@@ -171,3 +173,18 @@ def test_diagnostic_values_keys() -> None:
     assert values['gyro_bias_deg_s'] == '+0.500 -0.250 +0.000'
     assert values['quality'] == '1.000' and values['clock_resets'] == 0
     assert list(values)[0] == 'frame_rate_hz'
+
+
+def test_sized_config_follows_the_frames_or_says_why_not() -> None:
+    """frame_size: frames: a 4/3 canvas follows the frame (139x104 -> ceil(185.3) x
+    ceil(138.7) = 186x139) and the text names the 2.1x pixels; a fixed 100x80 canvas
+    cannot take 128x96 frames."""
+    cfg, text = sized_config(ResonatorConfig(), 139, 104)
+    assert cfg is not None and (cfg.width, cfg.height) == (139, 104)
+    g = geometry(cfg)
+    assert (g.canvas_width, g.canvas_height) == (186, 139)
+    assert 'frames are 139x104: the resonator takes that size' in text and '2.1x' in text
+    assert 'x the pixels' not in sized_config(ResonatorConfig(), 64, 48)[1]
+    fixed = from_dict(ResonatorConfig, {'codebook': {'canvas_width': 100, 'canvas_height': 80}})
+    none, why = sized_config(fixed, 128, 96)
+    assert none is None and 'cannot take that size' in why
