@@ -43,9 +43,10 @@ def ros2(*args: str, timeout: float = 40.0) -> subprocess.CompletedProcess[str]:
 LAST_INFO: list[str] = ['']
 
 
-def wait_for(what: str, check: Callable[[], bool], timeout: float = 60.0) -> None:
+def wait_for(what: str, check: Callable[[], bool], timeout: float = 60.0,
+             log: Path | None = None) -> None:
     """Poll ``check`` until it holds; fail naming ``what`` (and the last topic info, the
-    nodes and topics the graph shows then) after ``timeout`` s."""
+    nodes and topics the graph shows then, the end of ``log``) after ``timeout`` s."""
     end = time.monotonic() + timeout
     LAST_INFO[0] = ''
     while not check():
@@ -53,7 +54,8 @@ def wait_for(what: str, check: Callable[[], bool], timeout: float = 60.0) -> Non
             nodes = ros2('node', 'list', '--no-daemon', '--spin-time', '2').stdout
             pytest.fail(f'timed out after {timeout:.0f} s waiting for {what}'
                         + (f'; last ros2 topic info:\n{LAST_INFO[0]}' if LAST_INFO[0] else '')
-                        + f'\nnodes:\n{nodes}topics:\n{" ".join(sorted(topics()))}')
+                        + f'\nnodes:\n{nodes}topics:\n{" ".join(sorted(topics()))}'
+                        + (f'\nlog (end):\n{log.read_text()[-3000:]}' if log else ''))
         time.sleep(0.5)
 
 
@@ -158,7 +160,7 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
     tmp.mkdir()
     with started(args, log, dict(os.environ, TMPDIR=str(tmp))) as proc:
         wait_for('the resonator parameters', lambda: param('/resonator_node', 'imu.enabled')
-                 == 'Boolean value is: True')
+                 == 'Boolean value is: True', timeout=150, log=log)
         assert param('/resonator_node', 'publish_tf') == 'Boolean value is: True'
         assert param('/resonator_node', 'focal_px') == 'Double value is: 79.6'
         assert param('/resonator_node', 'use_sim_time') == 'Boolean value is: False'
@@ -190,9 +192,12 @@ def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Pat
     tmp = tmp_path / 'tmp'   # where the launch file writes the namespaced parameter files
     tmp.mkdir()
     with started(args, log, dict(os.environ, TMPDIR=str(tmp))) as proc:
+        # two nodes start and two namespaced parameter files are written: on a loaded
+        # machine their discovery once took more than a minute (a full-suite run)
         wait_for('the namespaced packetizer', lambda: param('/cam0/packetizer_node',
                                                              'sensor_width')
-                 == 'Integer value is: 240')  # from the config's packetizer_node section
+                 == 'Integer value is: 240',  # from the config's packetizer_node section
+                 timeout=150, log=log)
         assert param('/cam0/resonator_node', 'cleanup.gamma') == 'Double value is: 0.9'
         assert param('/cam0/resonator_node', 'use_sim_time') == 'Boolean value is: True'
         assert param('/cam0/packetizer_node', 'use_sim_time') == 'Boolean value is: True'
