@@ -3,7 +3,9 @@
 :class:`LiveOdometry` holds what the node keeps between messages: the odometry pipeline
 (:class:`~hrn_vo_ros.core.pipeline.OdometryPipeline`), the frames waiting for gyro samples
 (:class:`~hrn_vo_ros.core.odometry.publish.GyroGate`), the pose/twist composer, the stamp checks
-of both streams and the diagnostics windows. A frame or IMU stamp going back by more than the
+of both streams, the frame size and the diagnostics windows. Frames of another size are
+rejected, or, while the settings say ``adopt_size`` (``frame_size: frames``), given a resonator
+of their size (tracking restarts). A frame or IMU stamp going back by more than the
 tolerance restarts that stream's time state (waiting frames processed, a new gyro integrator,
 no twist across; counted as ``clock_resets_<stream>``). A frame-stamp reset also restarts
 tracking (``estimator.reset()``, counted as ``tracking_restarts``): after a looped bag or a
@@ -50,8 +52,7 @@ from hrn_vo_ros.errors import HrnVoError
 class LiveSettings:
     """The run-time settings a call reads (they may change between messages)."""
 
-    width: int
-    height: int
+    adopt_size: bool               # frames of another size get a resonator of their size
     imu: bool                      # frames wait for the gyro (``imu.enabled``)
     with_z: bool                   # the resonator reads out the log scale z
     odometry: OdometryConfig
@@ -74,6 +75,10 @@ class Step:
 
 
 Item = Note | Step
+
+#: Builds the resonator for frames of (width, height): the resonator, or None and why not,
+#: and the text to log (``frame_size: frames``; :func:`sized_config` and :func:`make_resonator`).
+Resizer = Callable[[int, int], tuple[ResonatorBackend | None, str]]
 
 
 def make_resonator(cfg: ResonatorConfig, seed: int, backend: BackendConfig
@@ -110,15 +115,21 @@ class LiveOdometry:
     Args:
         estimator: The resonator (the pipeline's estimator; replaced by ``reconfigured``).
         gate: The frames waiting for gyro samples (its gyro is the pipeline's).
+        size: The (width, height) of the frames ``estimator`` takes.
         tolerance_ns: Stamps going back by more than this restart the time state.
+        resize: Builds a resonator for frames of another size (used while the settings'
+            ``adopt_size`` holds; without it such frames are rejected).
         counts: Where counters go (a new Counter when None).
         now: The wall clock (``time.monotonic``; injectable for tests).
     """
 
-    def __init__(self, estimator: ResonatorBackend, gate: GyroGate, *, tolerance_ns: int,
+    def __init__(self, estimator: ResonatorBackend, gate: GyroGate, size: tuple[int, int], *,
+                 tolerance_ns: int, resize: Resizer | None = None,
                  counts: Counter[str] | None = None,
                  now: Callable[[], float] = time.monotonic) -> None:
         self.pipeline = OdometryPipeline(estimator, gyro=gate.gyro, record=False)
+        self.size = size
+        self.resize = resize
         self.gate = gate
         self.composer = OdometryComposer()
         self.counts: Counter[str] = Counter() if counts is None else counts
@@ -129,9 +140,18 @@ class LiveOdometry:
         self._now = now
 
     def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings) -> Iterator[Item]:
-        """One decoded frame: checked, then processed now or when the gyro covers it."""
-        if image.shape != (s.height, s.width):
-            text = size_mismatch_text(image.shape[1], image.shape[0], s.width, s.height)
+        """One decoded frame: checked (of another size: a resonator of its size when the
+        settings adopt sizes), then processed now or when the gyro covers it."""
+        size = (image.shape[1], image.shape[0])
+        if size != self.size and s.adopt_size and self.resize is not None:
+            estimator, text = self.resize(*size)
+            if estimator is not None:
+                self.reconfigured(estimator, size)
+                yield Note('warn', 'frame_size', text)
+            else:                                   # the frame is then rejected (ERROR)
+                yield Note('warn', 'frame_size_refused', text, throttled=True)
+        if size != self.size:
+            text = size_mismatch_text(*size, *self.size)
             self.size_mismatch.mark(text)
             yield Note('reject', 'size', text)
             return
@@ -183,9 +203,10 @@ class LiveOdometry:
         if self.gate.stalled(self._now(), s.imu_timeout_s):
             yield from self._drain(s, force=True)
 
-    def reconfigured(self, estimator: ResonatorBackend) -> None:
-        """A new resonator (tracking restarts: no twist across)."""
+    def reconfigured(self, estimator: ResonatorBackend, size: tuple[int, int]) -> None:
+        """A new resonator, for frames of ``size`` (tracking restarts: no twist across)."""
         self.pipeline.estimator = estimator
+        self.size = size
         self.composer.restart()
 
     def _restart_time(self, what: str, s: LiveSettings) -> Iterator[Item]:

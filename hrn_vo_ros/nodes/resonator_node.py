@@ -13,11 +13,11 @@ after a rejected message or a time reset, ERROR while lost or while frames of an
 ``width`` x ``height`` arrive, the message naming the values to set; with ``frame_size:
 frames`` the resonator takes the size of the frames instead, restarting tracking when it changes).
 
-The logic is ``core/live.py`` (stamps going back by more than ``clock_tolerance_s`` restart a
-stream's time state; per frame the step ``hrn-vo run`` takes) and ``core/odometry/publish.py``
-(covariances growing as quality falls, ``lost_variance`` while lost). Parameters: the fields of
-``ResonatorConfig``, ``ResonatorNodeConfig`` and, under ``backend.``, ``BackendConfig`` (same
-names); ``loihi_node`` is this node preset to ``backend.name: spiking``.
+The logic is ``core/live.py`` (stamp resets beyond ``clock_tolerance_s``, frame sizes, per frame
+the step ``hrn-vo run`` takes) and ``core/odometry/publish.py`` (covariances growing as quality
+falls, ``lost_variance`` while lost). Parameters: the fields of ``ResonatorConfig``,
+``ResonatorNodeConfig`` and, under ``backend.``, ``BackendConfig``; ``loihi_node`` is this node
+preset to ``backend.name: spiking``.
 """
 
 from __future__ import annotations
@@ -41,7 +41,6 @@ from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator, sized_config
 from hrn_vo_ros.core.odometry import publish
-from hrn_vo_ros.core.pipeline import OdometryPipeline
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
@@ -60,11 +59,11 @@ class ResonatorNode(Node):
         self._backend = declare_config(self, BackendConfig, prefix='backend.',
                                        on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
-        self._size = (cfg.width, cfg.height)       # the frame size (frame_size: frames adopts)
         self.stats = NodeStats()
         self._live = LiveOdometry(self._make_hrn(cfg), publish.GyroGate(
             cfg.imu.camera_from_imu, max_samples=opts.imu_buffer_samples,
-            max_pending=opts.max_pending_frames), tolerance_ns=int(opts.clock_tolerance_s * 1e9),
+            max_pending=opts.max_pending_frames), (cfg.width, cfg.height),
+            tolerance_ns=int(opts.clock_tolerance_s * 1e9), resize=self._sized_hrn,
             counts=self.stats.counts)
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._image_rate, self._throttle = RateLimit(), Throttle()
@@ -88,10 +87,6 @@ class ResonatorNode(Node):
             + f', factors {"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
 
     @property
-    def _pipeline(self) -> OdometryPipeline[ResonatorBackend]:
-        return self._live.pipeline    # the odometry pipeline (its estimator is replaceable)
-
-    @property
     def _hrn(self) -> ResonatorBackend:
         """The current resonator (the pipeline's estimator)."""
         return self._live.pipeline.estimator
@@ -106,9 +101,10 @@ class ResonatorNode(Node):
     def _settings(self) -> LiveSettings:
         """The settings ``core/live.py`` reads now (parameters may change between messages)."""
         opts, cfg = self._opts.config, self._algo.config
-        return LiveSettings(*self._size, cfg.imu.enabled, 'z' in self._hrn.factors,
-                            opts.odometry, cfg.focal_px, opts.lost_variance, opts.min_quality,
-                            opts.imu_timeout_s, cfg.imu.camera_from_imu)
+        return LiveSettings(opts.frame_size == 'frames', cfg.imu.enabled,
+                            'z' in self._hrn.factors, opts.odometry, cfg.focal_px,
+                            opts.lost_variance, opts.min_quality, opts.imu_timeout_s,
+                            cfg.imu.camera_from_imu)
 
     def _publish_static_tf(self) -> None:
         """base_link → camera (mount) and camera → IMU (``imu.camera_from_imu``) on /tf_static."""
@@ -125,23 +121,16 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        sized, _ = sized_config(cfg, *self._size)          # keep an adopted frame size
-        if sized is None:
-            self._size = (cfg.width, cfg.height)
-        self._live.reconfigured(self._make_hrn(sized or cfg))
+        sized, _ = sized_config(cfg, *self._live.size)     # keep an adopted frame size
+        self._live.reconfigured(self._make_hrn(sized or cfg), self._live.size if sized
+                                else (cfg.width, cfg.height))
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
-    def _adopt_size(self, width: int, height: int) -> None:
-        """``frame_size: frames``: a resonator for frames of ``width`` x ``height`` (tracking
-        restarts); when the config cannot take that size, the frames are dropped as
-        mismatched (ERROR) and the reason is logged."""
+    def _sized_hrn(self, width: int, height: int) -> tuple[ResonatorBackend | None, str]:
+        """``frame_size: frames``: the resonator for frames of ``width`` x ``height``, or None
+        and why (``core.live.sized_config``)."""
         cfg, text = sized_config(self._algo.config, width, height)
-        if cfg is None:                             # the frame is then dropped (ERROR)
-            self.get_logger().warning(text, throttle_duration_sec=self._opts.config.log_throttle_s)
-            return
-        self._size = (width, height)
-        self._live.reconfigured(self._make_hrn(cfg))
-        self.get_logger().warning(text)
+        return (None if cfg is None else self._make_hrn(cfg)), text
 
     def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')
@@ -150,9 +139,6 @@ class ResonatorNode(Node):
         except HrnVoError as err:
             self._reject('decode', err)
             return
-        if (self._opts.config.frame_size == 'frames'
-                and image.shape != (self._size[1], self._size[0])):
-            self._adopt_size(image.shape[1], image.shape[0])
         self._emit(self._live.frame(t_ns, image, self._settings()))
 
     def _on_imu(self, msg: Imu) -> None:

@@ -49,18 +49,18 @@ class Scripted:
                         state='tracking')
 
 
-def settings(imu: bool = False, focal_px: float = 0.0) -> LiveSettings:
-    return LiveSettings(width=8, height=6, imu=imu, with_z=False,
+def settings(imu: bool = False, focal_px: float = 0.0, adopt: bool = False) -> LiveSettings:
+    return LiveSettings(adopt_size=adopt, imu=imu, with_z=False,
                         odometry=OdometryConfig(focal_length_px=80.0), focal_px=focal_px,
                         lost_variance=1e6, min_quality=0.05, imu_timeout_s=0.5,
                         camera_from_imu=EYE)
 
 
-def live(est: Scripted, now: list[float] | None = None) -> LiveOdometry:
+def live(est: Scripted, now: list[float] | None = None, resize: Any = None) -> LiveOdometry:
     clock = now if now is not None else [0.0]
     gate = GyroGate(EYE, max_samples=1000, max_pending=3)
-    return LiveOdometry(est, gate, tolerance_ns=10 * MS, counts=Counter(),  # type: ignore[arg-type]
-                        now=lambda: clock[0])
+    return LiveOdometry(est, gate, (8, 6), tolerance_ns=10 * MS,  # type: ignore[arg-type]
+                        resize=resize, counts=Counter(), now=lambda: clock[0])
 
 
 def steps(items: list[Item]) -> list[int]:
@@ -103,6 +103,38 @@ def test_a_size_mismatch_is_a_reject_and_an_error_for_the_window() -> None:
     assert lo.states(10.0)[0][0] == 'error' and 'frames are 9x6' in lo.states(10.0)[0][1]
     now[0] += 11.0
     assert lo.states(10.0) == [('ok', 'tracking tracking (quality 1.00)')]
+
+
+def test_adopting_sizes_builds_a_resonator_per_new_size_or_rejects_with_the_reason() -> None:
+    """adopt_size: a 9x6 frame asks the resizer once and goes to the new resonator (the old
+    one sees no more frames); back to 8x6, another; a refused size is a throttled warning
+    and the usual reject (ERROR); without adopt_size the resizer is never asked."""
+    first, built, asked = Scripted(), [], []
+
+    def resize(width: int, height: int) -> tuple[Scripted | None, str]:
+        asked.append((width, height))
+        if width > 9:
+            return None, f'cannot take {width}x{height}'
+        built.append(Scripted())
+        return built[-1], f'takes {width}x{height}'
+
+    lo = live(first, resize=resize)
+    assert steps(list(lo.frame(10**9, IMAGE, settings(adopt=True)))) == [10**9]
+    wide = np.zeros((6, 9), np.uint8)
+    assert notes(list(lo.frame(10**9 + MS, wide, settings()))) == [('reject', 'size')]
+    assert asked == []                                   # not adopting: no resonator built
+    items = list(lo.frame(10**9 + 2 * MS, wide, settings(adopt=True)))
+    assert notes(items) == [('warn', 'frame_size')] and steps(items) == [10**9 + 2 * MS]
+    assert [i.text for i in items if isinstance(i, Note)] == ['takes 9x6']
+    items = list(lo.frame(10**9 + 3 * MS, wide, settings(adopt=True)))
+    assert notes(items) == [] and lo.size == (9, 6) and asked == [(9, 6)]
+    list(lo.frame(10**9 + 4 * MS, IMAGE, settings(adopt=True)))
+    assert asked == [(9, 6), (8, 6)] and len(built) == 2
+    assert [len(e.steps) for e in (first, *built)] == [1, 2, 1]
+    items = list(lo.frame(10**9 + 5 * MS, np.zeros((6, 10), np.uint8), settings(adopt=True)))
+    assert notes(items) == [('warn', 'frame_size_refused'), ('reject', 'size')]
+    assert [i.throttled for i in items if isinstance(i, Note)] == [True, False]
+    assert lo.size == (8, 6) and lo.states(10.0)[0][0] == 'error'
 
 
 def test_frame_stamps_going_back_restart_the_time_state() -> None:

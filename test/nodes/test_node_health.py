@@ -273,9 +273,9 @@ class Scripted:
 def test_covariance_follows_quality_and_lost_and_the_level_the_state(ros: list[Node]) -> None:
     node = resonator(min_quality=0.05, lost_variance=1e6)
     p = start(ros, node)
-    node._pipeline.estimator = Scripted([(1.0, 'tracking'), (1.0, 'tracking'),
-                                         (0.5, 'degraded'), (0.01, 'degraded'),
-                                         (0.3, 'lost'), (0.9, 'tracking')])
+    node._live.pipeline.estimator = Scripted([(1.0, 'tracking'), (1.0, 'tracking'),
+                                              (0.5, 'degraded'), (0.01, 'degraded'),
+                                              (0.3, 'lost'), (0.9, 'tracking')])
     cfg = OdometryConfig(focal_length_px=80.0)
     image = np.eye(72, 96, dtype=np.uint8)
 
