@@ -2,7 +2,8 @@
 
 Usage (ROS 2 Jazzy with this package built by colcon, or the tools scripts/setup.sh installs)::
 
-    ros2 launch hrn_vo_ros hrn_vo.launch.py         # a live camera on event_camera/events
+    ros2 launch hrn_vo_ros hrn_vo.launch.py         # any live camera on event_camera/events
+    ros2 launch hrn_vo_ros hrn_vo.launch.py dataset:=shapes_rotation focal_px:=79.6
     ros2 launch hrn_vo_ros hrn_vo.launch.py dataset:=shapes_translation use_imu:=true
     ros2 launch hrn_vo_ros hrn_vo.launch.py config:=/path/my.yaml bag:=/path/to/bag
     ros2 launch hrn_vo_ros hrn_vo.launch.py namespace:=cam0 use_sim_time:=true
@@ -31,8 +32,9 @@ import yaml
 from launch import LaunchDescription
 
 ARGUMENTS = [
-    ('dataset', 'shapes_rotation',
-     'name of a parameter file in share/hrn_vo_ros/config (without .yaml)'),
+    ('dataset', 'live',
+     'name of a parameter file in share/hrn_vo_ros/config (without .yaml); live: any camera '
+     'turning, no calibration (shapes_rotation: a calibrated DAVIS240C, waits for CameraInfo)'),
     ('config', '', 'a parameter file path; overrides dataset'),
     ('namespace', '', 'ROS namespace of the nodes (empty: the root namespace)'),
     ('events_topic', 'event_camera/events',

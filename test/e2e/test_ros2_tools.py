@@ -165,6 +165,10 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
         assert param('/resonator_node', 'focal_px') == 'Double value is: 79.6'
         assert param('/resonator_node', 'use_sim_time') == 'Boolean value is: False'
         assert param('/packetizer_node', 'events_per_frame') == 'Integer value is: 2000'
+        # the default dataset is live.yaml: any camera (frame_size: frames, sizes from the
+        # messages; the dataclass defaults say parameters and config)
+        assert param('/resonator_node', 'frame_size') == 'String value is: frames'
+        assert param('/packetizer_node', 'sensor_size') == 'String value is: messages'
         # use_imu also gives the packetizer the packets of a fused gyro
         assert param('/packetizer_node', 'imu.enabled') == 'Boolean value is: True'
         # the resonator reads the packetizer's frames; the packetizer the camera topic
@@ -188,7 +192,7 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
 def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Path) -> None:
     log = tmp_path / 'launch.log'
     args = ['ros2', 'launch', 'hrn_vo_ros', 'hrn_vo.launch.py', 'namespace:=cam0',
-            'use_sim_time:=true']
+            'use_sim_time:=true', 'dataset:=shapes_rotation']
     tmp = tmp_path / 'tmp'   # where the launch file writes the namespaced parameter files
     tmp.mkdir()
     with started(args, log, dict(os.environ, TMPDIR=str(tmp))) as proc:
