@@ -186,7 +186,7 @@ def main() -> int:
         # as hrn-vo run: fx / downsample of the simulated camera (calib.txt)
         fx = simulate('rotation', 0.01, seed=0).calib.fx
         pcfg, cfg = load_configs(args.config,
-                                 resonator={**rs_over, 'focal_px': fx / pcfg.downsample})
+                                 resonator={**rs_over, 'focal_px': fx / pcfg.factor})
     spk = BackendConfig('spiking', from_dict(SpikingConfig, sp_over))
     flt = BackendConfig('float')
     print(f'resonator: {cfg.width}x{cfg.height}, nonlinearity {cfg.cleanup.nonlinearity}, '

@@ -44,9 +44,9 @@ ARGUMENTS = [
     ('imu_topic', 'imu', 'the sensor_msgs/Imu topic (used with use_imu:=true)'),
     ('use_imu', 'false', 'fuse the gyro (sets imu.enabled of the resonator and the packetizer)'),
     ('focal_px', '0.0',
-     'focal length in frame pixels, fx / downsample (about 79.6 for a DAVIS240C at 2.5), for '
-     "the IMU prediction, the sphere correction and the odometry calibration "
-     "(odometry.focal_length_px); 0 keeps the config's values"),
+     'focal length in frame pixels, fx / the downsample factor the packetizer logs (about '
+     '79.6 for a DAVIS240C at 2.5), for the IMU prediction, the sphere correction and the '
+     "odometry calibration (odometry.focal_length_px); 0 keeps the config's values"),
     ('publish_tf', 'false', 'publish odom -> base_link on /tf'),
     ('use_sim_time', 'false',
      'run the nodes on the /clock topic (the bag player of bag:= then publishes it)'),

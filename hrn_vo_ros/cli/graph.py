@@ -234,7 +234,7 @@ def dataset_overrides(dataset: Path | None, params_file: Path | None, *, imu: bo
     if dataset is None:
         return {}, rs
     dc = dataset_configs(params_file, dataset, packetizer={'imu.enabled': imu}, resonator=rs)
-    focal = read_calib(dataset).fx / dc.packetizer.downsample
+    focal = read_calib(dataset).fx / dc.packetizer.factor
     return dict(dc.packetizer_overrides), {**dc.resonator_overrides,
                                            'odometry.focal_length_px': focal}
 

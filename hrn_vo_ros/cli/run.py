@@ -219,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
         a, b = result.stamp_span_ns
         echo(f'{result.events} change events; header stamps {a / 1e9:.6f}..{b / 1e9:.6f} s, '
              f'estimates {t[0] / 1e9:.6f}..{t[-1] / 1e9:.6f} s')
-    echo(f'{n} frames in {result.seconds:.2f} s ({n / max(result.seconds, 1e-9):.0f} '
-         f'frames/s) -> {args.out}')
+    pk = dc.packetizer
+    echo(f'{n} frames of {pk.width}x{pk.height} (downsample {pk.factor:.4g}) in '
+         f'{result.seconds:.2f} s ({n / max(result.seconds, 1e-9):.0f} frames/s) -> {args.out}')
     return 0

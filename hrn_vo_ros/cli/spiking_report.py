@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if needs_focal(cfg):
         fx = (seq.calib.fx if seq is not None else simulate('rotation', 0.01, seed=0).calib.fx)
         pcfg, cfg = load_configs(args.config, packetizer=pk_over,
-                                 resonator={**rs_over, 'focal_px': fx / pcfg.downsample})
+                                 resonator={**rs_over, 'focal_px': fx / pcfg.factor})
         if seq is not None:
             pcfg = with_calibration(pcfg, seq.calib)
     if seq is not None:

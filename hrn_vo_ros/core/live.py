@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.clock import Recent, StampChecker, Verdict
+from hrn_vo_ros.core.events.frames import VALIDATED_FRAME
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig, without_unset_sphere
@@ -101,11 +102,12 @@ def sized_config(cfg: ResonatorConfig, width: int, height: int
         sized = replace(cfg, width=width, height=height)
     except HrnVoError as err:
         return None, f'frames are {width}x{height}; the resonator cannot take that size: {err}'
-    ratio = width * height / (96 * 72)
+    vw, vh = VALIDATED_FRAME
+    ratio = width * height / (vw * vh)
     return sized, (f'frames are {width}x{height}: the resonator takes that size (frame_size: '
                    'frames); tracking starts from a new map' + (
-                       f'; {ratio:.1f}x the pixels of the validated 96x72 frame: more time '
-                       'per frame (a larger packetizer downsample gives smaller frames)'
+                       f'; {ratio:.1f}x the pixels of the validated {vw}x{vh} frame: more '
+                       'time per frame (packetizer downsample 0 gives at most that size)'
                        if ratio > 1.5 else ''))
 
 

@@ -489,7 +489,7 @@ def input_configs(config: Path | None, source: Path, *, bag: BagInfo | None = No
             raise ConfigError('the IMU prediction and the sphere correction need the focal '
                               'length and a bag has no calib.txt: pass --set focal_px=F '
                               '(frame pixels) or --set sphere.enabled=false')
-        rs['focal_px'] = ecd.read_calib(source).fx / pcfg.downsample
+        rs['focal_px'] = ecd.read_calib(source).fx / pcfg.factor
     pcfg, rcfg = load_configs(config, packetizer=pk, resonator=rs)
     problem = sphere_rectify_problem(pcfg.rectify, rcfg)
     if problem is not None:

@@ -74,7 +74,7 @@ def dataset_configs(path: Path | str | None, dataset: Path, *,
     pcfg, rcfg = load_configs(path, packetizer=pk, resonator=rs)
     rs.update(width=pcfg.width, height=pcfg.height)
     if needs_focal(rcfg):
-        rs['focal_px'] = ecd.read_calib(dataset).fx / pcfg.downsample
+        rs['focal_px'] = ecd.read_calib(dataset).fx / pcfg.factor
     pcfg, rcfg = load_configs(path, packetizer=pk, resonator=rs)
     problem = sphere_rectify_problem(pcfg.rectify, rcfg)
     if problem is not None:

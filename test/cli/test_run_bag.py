@@ -26,8 +26,9 @@ def hrn_vo(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 #: live.yaml as it is: no calibration needed, the canvas follows each sensor's frame size
-#: (240x180 and 346x260 here, frames 96x72 and 139x104 at downsample 2.5)
+#: (640x480 and 346x260 here: 96x72 frames, downsample 0 = auto: 6.667 and 3.611)
 LIVE = ['--config', str(ROOT / 'config' / 'live.yaml')]
+AUTO = {'test_events_1': '6.667', 'test_events_2': '3.611'}    # 640 / 96, 260 / 72
 LIVE_TRANSLATION = ['--config', str(ROOT / 'config' / 'live_translation.yaml')]
 
 
@@ -45,6 +46,8 @@ def test_driver_bag(tmp_path: Path, name: str, events: int, sets: list[str]) -> 
     assert f'{events} change events' in res.stdout
     ef = read_estimate_file(out)
     assert len(ef.series) == events // 2000
+    if sets is not SETS:               # the live configs' auto downsample: 96x72 from both
+        assert f'{len(ef.series)} frames of 96x72 (downsample {AUTO[name]})' in res.stdout
     assert ef.state is not None and ef.quality is not None
     line = next(x for x in res.stdout.splitlines() if 'header stamps' in x)
     span = line.split('header stamps ')[1].split(' s,')[0].split('..')

@@ -128,7 +128,7 @@ def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Pa
     # Truth at the last frame: h = 0.15 * 59 = 8.85 px, r = 0.004 * 59 = 0.236 rad.
     assert abs(est.h[-1] - 8.85) < 1.5 and abs(est.v[-1]) < 1.5
     assert abs(est.r[-1] - 0.236) < 0.05
-    assert '60 frames in' in capsys.readouterr().out
+    assert '60 frames of 96x72 (downsample 2.5) in' in capsys.readouterr().out
 
 
 def test_run_with_the_gyro_makes_the_packets_of_a_fused_gyro(tmp_path: Path) -> None:
@@ -328,9 +328,11 @@ def test_the_live_config_runs_the_rotation_network_without_a_calibration() -> No
                                                                 'shapes_rotation.yaml')]
     live, rot = ([{p.name: p.default for p in describe(c)} for c in pair] for pair in cfgs)
     differ = {k for a, b in zip(live, rot, strict=True) for k in a if a[k] != b[k]}
-    # the canvas is given relative to the frame (any camera), the same 128x96 for 96x72
+    # the canvas is given relative to the frame (any camera), the same 128x96 for 96x72; the
+    # downsample is auto (any sensor into 96x72), the same 2.5 on the 240x180 sensor
     assert differ == {'rectify', 'sphere.enabled', 'codebook.canvas_width',
-                      'codebook.canvas_height', 'codebook.canvas_scale'}, differ
+                      'codebook.canvas_height', 'codebook.canvas_scale', 'downsample'}, differ
+    assert cfgs[0][0].factor == cfgs[1][0].factor == 2.5
     assert live[0]['rectify'] == 'none' and live[1]['sphere.enabled'] is False
     g = [geometry(r) for _, r in cfgs]
     assert g[0] == g[1] and (g[0].canvas_width, g[0].canvas_height) == (128, 96)
@@ -345,13 +347,15 @@ def test_the_live_config_runs_the_rotation_network_without_a_calibration() -> No
 def test_the_live_translation_config_runs_the_translation_network_without_a_calibration(
         ) -> None:
     """config/live_translation.yaml takes every algorithm setting of shapes_translation.yaml
-    but the rectification, with the canvas relative to the frame (the same 128x96 for 96x72)."""
+    but the rectification, with the canvas relative to the frame (the same 128x96 for 96x72)
+    and the auto downsample."""
     cfgs = [load_configs(ROOT / 'config' / name) for name in ('live_translation.yaml',
                                                                 'shapes_translation.yaml')]
     live, tr = ([{p.name: p.default for p in describe(c)} for c in pair] for pair in cfgs)
     differ = {k for a, b in zip(live, tr, strict=True) for k in a if a[k] != b[k]}
     assert differ == {'rectify', 'codebook.canvas_width', 'codebook.canvas_height',
-                      'codebook.canvas_scale'}, differ
+                      'codebook.canvas_scale', 'downsample'}, differ
+    assert cfgs[0][0].factor == cfgs[1][0].factor == 2.5     # auto on 240x180
     assert live[0]['rectify'] == 'none' and live[1]['scale.enabled'] is True
     assert geometry(cfgs[0][1]) == geometry(cfgs[1][1])
 

@@ -190,7 +190,8 @@ def sensor_packet(rng: np.random.Generator, n: int, seq: int, t0: int, w: int, h
 
 
 def test_sensor_size_from_messages_640x480(ros: list[Node], rng: np.random.Generator) -> None:
-    p = start(ros, packetizer(sensor_size='messages', downsample=640 / 96), resonator())
+    # downsample 0 (auto, the default): 640x480 into 96x72 at 6.667
+    p = start(ros, packetizer(sensor_size='messages'), resonator())
     for k in range(3):
         p.ev_pub.publish(sensor_packet(rng, 2 * PER_FRAME, k, 10**9 + k * 10**8, 640, 480))
     assert p.wait(lambda: len(p.odoms) == 6)
@@ -205,8 +206,8 @@ def test_sensor_size_from_messages_640x480(ros: list[Node], rng: np.random.Gener
 
 def test_frame_size_mismatch_is_an_error_naming_what_to_set(
         ros: list[Node], rng: np.random.Generator) -> None:
-    # live.yaml's case: the sensor size from the messages, downsample 2.5, resonator 96x72
-    p = start(ros, packetizer(sensor_size='messages'), resonator())
+    # the sensor size from the messages with a fixed downsample 2.5, the resonator at 96x72
+    p = start(ros, packetizer(sensor_size='messages', downsample=2.5), resonator())
     p.ev_pub.publish(sensor_packet(rng, 2 * PER_FRAME, 0, 10**9, 640, 480))
     st = p.wait_level('resonator_node', ERROR)
     assert 'frames are 256x192' in st.message and '96x72' in st.message

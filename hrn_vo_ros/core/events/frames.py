@@ -13,6 +13,12 @@ than ``min_events_per_pixel - 1`` events (``min_events_per_pixel = 1`` for shape
 arm), else 0. The frame time is the midpoint of the first and last event of the packet (int64
 ns, rounded down).
 
+**Auto factor** (``downsample: 0``, the default and the live configs): f = max(W / 96, H / 72,
+1), so every sensor gives frames of at most 96x72 (:data:`VALIDATED_FRAME`, the size the network
+was validated at): 2.5 on a DAVIS240C, 3.61 on 346x260, 6.67 on 640x480, 13.3 on 1280x720 (96x54).
+Packets of the same event count then make about the same frames whatever the sensor's
+resolution (docs/results.md: the rotation family on a 640x480 sensor).
+
 **Time-capped packets** (``max_frame_ms`` > 0): a packet also closes once it spans
 ``max_frame_ms`` and holds at least ``min_frame_events`` events (:func:`packet_ends`), so a slow
 camera or a sparse scene still gives frames at a steady rate (fixed 2000-event packets give a
@@ -109,6 +115,11 @@ class FramingImuConfig:
                                 'max_frame_ms as without the gyro', lo=0.0, hi=1e6)
 
 
+#: The frame size the network was validated at (96x72: a DAVIS240C at downsample 2.5);
+#: ``downsample: 0`` fits any sensor into it.
+VALIDATED_FRAME = (96, 72)
+
+
 @dataclass(frozen=True, slots=True)
 class PacketizerConfig:
     """How events become frames (one packet of ``events_per_frame`` events per frame)."""
@@ -119,9 +130,10 @@ class PacketizerConfig:
                               lo=1, hi=65535, read_only=True)
     sensor_height: int = param(180, 'sensor height in pixels (DAVIS240C 180, Prophesee 480)',
                                lo=1, hi=65535, read_only=True)
-    downsample: float = param(2.5, 'coordinate downsampling factor f: x_out = floor((x+0.5)/f) '
-                              '(2.5: 240x180 -> 96x72; 10: 640x480 -> 64x48)',
-                              lo=1.0, hi=1000.0, read_only=True)
+    downsample: float = param(0.0, 'coordinate downsampling factor f: x_out = floor((x+0.5)/f) '
+                              '(2.5: 240x180 -> 96x72; 10: 640x480 -> 64x48); 0: auto, frames '
+                              'of at most 96x72 from any sensor (f = max(sensor_width / 96, '
+                              'sensor_height / 72, 1))', lo=0.0, hi=1000.0, read_only=True)
     min_events_per_pixel: int = param(1, 'a frame pixel is 1 with at least this many events '
                                       '(1: ">0", shapes; 2: ">1", robot arm)', lo=1, hi=1000)
     rectify: str = param('none', 'move events to an ideal camera before binning: none, pinhole '
@@ -156,8 +168,10 @@ class PacketizerConfig:
 
     def __post_init__(self) -> None:
         validate(self)
-        if not math.isfinite(self.downsample):
-            raise ConfigError('PacketizerConfig.downsample must be a finite number >= 1')
+        if not (math.isfinite(self.downsample)
+                and (self.downsample == 0.0 or self.downsample >= 1.0)):
+            raise ConfigError(f'PacketizerConfig.downsample = {self.downsample}: set a factor '
+                              '>= 1, or 0 for frames of about 96x72 from any sensor')
         for name, ms in (('max_frame_ms', self.max_frame_ms),
                          ('imu.max_frame_ms', self.imu.max_frame_ms if self.imu.enabled else 0)):
             if ms > 0 and self.min_frame_events > self.events_per_frame:
@@ -179,23 +193,33 @@ class PacketizerConfig:
         return round(self.frame_ms * 1e6)
 
     @property
+    def factor(self) -> float:
+        """The downsampling factor in force: ``downsample``, or for 0 (auto) the smallest that
+        fits the sensor into :data:`VALIDATED_FRAME` (at least 1)."""
+        if self.downsample > 0.0:
+            return self.downsample
+        w, h = VALIDATED_FRAME
+        return max(self.sensor_width / w, self.sensor_height / h, 1.0)
+
+    @property
     def width(self) -> int:
-        """Frame width in pixels, ceil(sensor_width / downsample)."""
-        return _out_size(self.sensor_width, self.downsample)
+        """Frame width in pixels, ceil(sensor_width / factor)."""
+        return _out_size(self.sensor_width, self.factor)
 
     @property
     def height(self) -> int:
-        """Frame height in pixels, ceil(sensor_height / downsample)."""
-        return _out_size(self.sensor_height, self.downsample)
+        """Frame height in pixels, ceil(sensor_height / factor)."""
+        return _out_size(self.sensor_height, self.factor)
 
 
 def paper_framing(**overrides: Any) -> PacketizerConfig:
     """The paper's packetizer (plain binning: packets of ``events_per_frame`` events, no
-    noise-floor threshold, no time limit with the gyro), the defaults of the first rounds, with
-    ``overrides`` (field values) on top; the defaults add the noise floor of the validated
-    network (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK`` is the resonator's counterpart)."""
+    noise-floor threshold, no time limit with the gyro, downsample 2.5), the defaults of the
+    first rounds, with ``overrides`` (field values) on top; the defaults add the noise floor and
+    the auto downsample of the validated network (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK``
+    is the resonator's counterpart)."""
     imu = overrides.pop('imu', FramingImuConfig(max_frame_ms=0.0))
-    fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, **overrides}
+    fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, 'downsample': 2.5, **overrides}
     return PacketizerConfig(imu=imu, **fields)
 
 
@@ -273,8 +297,8 @@ class _Binner:
     def __init__(self, cfg: PacketizerConfig) -> None:
         self.cfg = cfg
         self.h, self.w = cfg.height, cfg.width
-        self.lut_x = downsample_lut(cfg.sensor_width, cfg.downsample).astype(np.int32)
-        self.lut_y = (downsample_lut(cfg.sensor_height, cfg.downsample) * cfg.width).astype(
+        self.lut_x = downsample_lut(cfg.sensor_width, cfg.factor).astype(np.int32)
+        self.lut_y = (downsample_lut(cfg.sensor_height, cfg.factor) * cfg.width).astype(
             np.int32)
         self.lut: NDArray[np.int32] | None = None
         if cfg.rectify != 'none':
@@ -392,8 +416,8 @@ def rectify_lut(cfg: PacketizerConfig) -> NDArray[np.int32]:
                           'node reads camera_info)')
     xr, yr = rectified_pixels(cfg.rectify, cfg.sensor_width, cfg.sensor_height, c.fx, c.fy,
                               c.cx, c.cy, c.dist)
-    u = np.floor((xr + 0.5) / cfg.downsample)
-    v = np.floor((yr + 0.5) / cfg.downsample)
+    u = np.floor((xr + 0.5) / cfg.factor)
+    v = np.floor((yr + 0.5) / cfg.factor)
     inside = (u >= 0) & (u < cfg.width) & (v >= 0) & (v < cfg.height)
     flat = np.where(inside, v * cfg.width + u, -1)
     return flat.astype(np.int32).ravel()

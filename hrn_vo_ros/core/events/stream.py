@@ -29,7 +29,12 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.clock import ClockConfig, Recent, StreamClock, Verdict
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.frames import (
+    Packetizer,
+    PacketizerConfig,
+    VALIDATED_FRAME,
+    with_calibration,
+)
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.errors import HrnVoError
 
@@ -192,15 +197,19 @@ class PacketStream:
             return
         if self.sensor != (w, h):
             sized = replace(cfg, sensor_width=w, sensor_height=h)   # raises on a bad size
-            fw, fh, ds = sized.width, sized.height, cfg.downsample
+            fw, fh, ds = sized.width, sized.height, sized.factor
             first = self.sensor is None
             self.sensor = (w, h)
+            vw, vh = VALIDATED_FRAME
             out.notes.append(Note('info', 'sensor_size', (
                 f'sensor size {w}x{h} from the event packets'
                 + ('' if first else ' (changed: packetizer restarted)')
-                + f': frames are {fw}x{fh} (downsample {ds:g}); a resonator with frame_size: '
-                'frames (the live configs) takes that size, else its width/height must be the '
-                f'same (96x72, the validated size, needs downsample {w / 96:.4g} here)')))
+                + f': frames are {fw}x{fh} (downsample {ds:.4g}'
+                + (', auto' if cfg.downsample == 0 else '') + '); a resonator with '
+                'frame_size: frames (the live configs) takes that size, else its width/height '
+                'must be the same' + ('' if cfg.downsample == 0 else (
+                    f' ({vw}x{vh}, the validated size, needs downsample {w / vw:.4g} here, or '
+                    '0: auto)')))))
             if self.calib is not None and (self.calib.width, self.calib.height) != (w, h):
                 out.notes.append(Note('warn', 'camera_info_size', 'camera_info is for another '
                                       'sensor size: waiting for a matching one'))

@@ -210,7 +210,8 @@ def size_mismatch_text(w: int, h: int, width: int, height: int) -> str:
     """
     return (f'frames are {w}x{h}, width/height are {width}x{height}: set the resonator '
             f'width: {w} and height: {h} (or frame_size: frames), or the packetizer downsample '
-            f'so that its frame is {width}x{height} (downsample = sensor width / {width})')
+            f'so that its frame is {width}x{height} (downsample = sensor width / {width}; 0 '
+            'gives at most 96x72)')
 
 
 def imu_frame_warning(frame_id: str, imu_frame_id: str) -> str | None:

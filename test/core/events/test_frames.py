@@ -46,6 +46,29 @@ def test_output_size_and_every_pixel_lands_inside(sensor: tuple[int, int], f: fl
     assert np.all(np.diff(lx) >= 0)
 
 
+@pytest.mark.parametrize(('sensor', 'f', 'out'), [((240, 180), 2.5, (96, 72)),
+                                                  ((640, 480), 640 / 96, (96, 72)),
+                                                  ((346, 260), 260 / 72, (96, 72)),
+                                                  ((1280, 720), 1280 / 96, (96, 54)),
+                                                  ((64, 40), 1.0, (64, 40))])
+def test_auto_downsample_fits_any_sensor_into_96x72(sensor: tuple[int, int], f: float,
+                                                    out: tuple[int, int]) -> None:
+    """downsample 0: the smallest factor that fits the sensor into 96x72 (346x260: the
+    height binds, 3.611 > 3.604), never below 1 (a sensor smaller than the frame)."""
+    cfg = PacketizerConfig(sensor_width=sensor[0], sensor_height=sensor[1], downsample=0.0)
+    assert cfg.factor == pytest.approx(f, abs=1e-12)
+    assert (cfg.width, cfg.height) == out
+    # the sensor size of another camera (sensor_size: messages) gives its own factor
+    assert replace(cfg, sensor_width=240, sensor_height=180).factor == 2.5
+    ev = EventArray.from_arrays(np.arange(1, 5, dtype=np.int64) * 1000,
+                                np.array([0, sensor[0] - 1, 0, sensor[0] - 1]),
+                                np.array([0, 0, sensor[1] - 1, sensor[1] - 1]), np.zeros(4))
+    _, imgs = frames_from_events(ev, replace(cfg, events_per_frame=4))
+    corners = imgs[0][[0, 0, -1, -1], [0, -1, 0, -1]]
+    assert imgs[0].shape == (out[1], out[0]) and corners.tolist() == [1, 1, 1, 1]
+    assert int(imgs[0].sum()) == 4
+
+
 def test_downsampling_is_centre_aligned_division_and_rounding() -> None:
     lx = downsample_lut(240, 2.5)
     x = np.arange(240)
@@ -195,7 +218,7 @@ def test_bad_inputs_raise_with_actionable_messages(rng: np.random.Generator) -> 
                                        np.array([0])))
     with pytest.raises(ConfigError, match='events_per_frame'):
         paper_framing(events_per_frame=0)
-    with pytest.raises(ConfigError, match='downsample'):
+    with pytest.raises(ConfigError, match='downsample = 0.5: set a factor >= 1, or 0'):
         paper_framing(downsample=0.5)
 
 
