@@ -75,13 +75,14 @@ class PacketizerNode(Node):
                                  qos(opts.events_depth, reliable=opts.events_reliable,
                                      keep_all=opts.events_keep_all))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
-        waiting = ('' if self._stream.packetizer is not None else
+        waiting = ('' if not self._stream.needs_camera_info else
                    ' (no calib.* parameters: events are held until a camera_info arrives on '
                    f'{self.resolve_topic_name("~/camera_info")})')
+        size = (f'{cfg.sensor_width}x{cfg.sensor_height} -> {cfg.width}x{cfg.height}'
+                if opts.sensor_size == 'config' else 'sensor size from the event packets')
         self.get_logger().info(
-            f'{cfg.events_per_frame} events per frame, {cfg.sensor_width}x{cfg.sensor_height} '
-            f'-> {cfg.width}x{cfg.height}, rectify {cfg.rectify}{waiting}, events '
-            f'{"reliable" if opts.events_reliable else "best effort"}')
+            f'{cfg.events_per_frame} events per frame, {size}, rectify {cfg.rectify}{waiting}, '
+            f'events {"reliable" if opts.events_reliable else "best effort"}')
 
     def _subscribe_camera_info(self) -> None:
         """(Re)create the camera_info subscription: BEST_AVAILABLE resolves against the

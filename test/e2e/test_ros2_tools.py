@@ -169,6 +169,9 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
         # messages; the dataclass defaults say parameters and config)
         assert param('/resonator_node', 'frame_size') == 'String value is: frames'
         assert param('/packetizer_node', 'sensor_size') == 'String value is: messages'
+        # ... and its start line says so, without a camera_info wait (it does not rectify)
+        assert 'sensor size from the event packets, rectify none, ' in log.read_text()
+        assert 'camera_info' not in log.read_text()
         # use_imu also gives the packetizer the packets of a fused gyro
         assert param('/packetizer_node', 'imu.enabled') == 'Boolean value is: True'
         # the resonator reads the packetizer's frames; the packetizer the camera topic
