@@ -45,6 +45,9 @@ sequence and method, ``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time
 state and quality (the error-vs-time of the failures). ``--config FILE`` runs every kind with
 that params file instead of ``config/<kind>.yaml`` (``config/live.yaml`` on the rotation
 family: a camera without calibration, so no rectification and no sphere correction).
+``--sensor WIDTH`` renders every draw on a sensor that many pixels wide with the same field of
+view (:func:`hrn_vo_ros.core.sim.family.on_sensor`; with a config whose packetizer downsample
+is 0, e.g. ``--sensor 640 --config config/live.yaml``: the family on a 640x480 camera).
 
 Examples::
 
@@ -90,7 +93,13 @@ from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402
 from hrn_vo_ros.core.pipeline import OdometryPipeline  # noqa: E402
-from hrn_vo_ros.core.sim.family import draw, fresh_seeds, simulate_draw, tuning_seeds  # noqa: E402
+from hrn_vo_ros.core.sim.family import (  # noqa: E402
+    draw,
+    fresh_seeds,
+    on_sensor,
+    simulate_draw,
+    tuning_seeds,
+)
 from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
 from hrn_vo_ros.errors import DatasetError  # noqa: E402
@@ -142,10 +151,15 @@ P_OVERRIDES: dict[str, Any] = {}
 S_OVERRIDES: dict[str, Any] = {}
 #: A config file for every kind instead of ``config/<kind>.yaml`` (``--config``).
 CONFIG: dict[str, Path] = {}
+#: ``{'width': W}``: every draw seen by a sensor W pixels wide (``--sensor``, ``on_sensor``).
+SENSOR: dict[str, int] = {}
 
 
 def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None,
-          s_overrides: dict[str, Any] | None = None, config: Path | None = None) -> None:
+          s_overrides: dict[str, Any] | None = None, config: Path | None = None,
+          sensor: int | None = None) -> None:
+    if sensor is not None:
+        SENSOR['width'] = sensor
     OVERRIDES.update(overrides)
     P_OVERRIDES.update(p_overrides or {})
     S_OVERRIDES.update(s_overrides or {})
@@ -208,14 +222,17 @@ def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False
             ) -> tuple[Any, Sequence, dict[str, float], np.ndarray, np.ndarray]:
     """The draw, its sequence (events cut to one), motion summary and frames (``imu``: the
     packets of a fused gyro); cached."""
+    wide = f'_w{SENSOR["width"]}' if SENSOR else ''
     tag = (''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items())) + _config_tag(kind)
            + ('_imu' if imu else ''))
-    path = Path(cache) / f'{kind}_{seed}_{seconds:g}{tag}.pkl' if cache else None
+    path = Path(cache) / f'{kind}_{seed}_{seconds:g}{wide}{tag}.pkl' if cache else None
     if path is not None and path.exists():
         with open(path, 'rb') as f:
             return tuple(pickle.load(f))
     d = draw(kind, seed)
-    raw = Path(cache) / f'{kind}_{seed}_{seconds:g}_events.pkl' if cache else None
+    if SENSOR:
+        d = on_sensor(d, SENSOR['width'])
+    raw = Path(cache) / f'{kind}_{seed}_{seconds:g}{wide}_events.pkl' if cache else None
     if raw is not None and raw.exists():
         with open(raw, 'rb') as f:
             seq = pickle.load(f)
@@ -583,6 +600,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--config', type=Path, default=None,
                    help='run every kind with this config file instead of config/<kind>.yaml '
                         '(e.g. config/live.yaml on the rotation family)')
+    p.add_argument('--sensor', type=int, default=None, metavar='WIDTH',
+                   help='render every draw on a sensor WIDTH pixels wide with the same field '
+                        'of view (640: the rotation family on 640x480); needs a config whose '
+                        'packetizer downsample is 0 (auto) and whose resonator takes the frame '
+                        'size (--config config/live.yaml)')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
                    help='run these seeds instead of the first -n of the split')
     p.add_argument('--rows', type=Path, nargs='+', default=None,
@@ -619,17 +641,25 @@ def main(argv: list[str] | None = None) -> int:
     if args.config is not None and not args.config.is_file():
         print(f'--config: no such file: {args.config}', file=sys.stderr)
         return 2
+    if args.sensor is not None:
+        for kind in args.kinds:     # a fixed factor makes frames of another size
+            path = args.config or ROOT / 'config' / CASES[kind].config
+            if load_configs(path)[0].downsample != 0:
+                print(f'--sensor: {path} has a fixed packetizer downsample; give a config '
+                      'with downsample 0 (e.g. --config config/live.yaml)', file=sys.stderr)
+                return 2
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
     print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
           f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs'
-          + ('' if args.config is None else f', config {args.config}'),
+          + ('' if args.config is None else f', config {args.config}')
+          + ('' if args.sensor is None else f', sensor {args.sensor} px wide'),
           flush=True)
     t0 = time.perf_counter()
     rows = []
     ctx = multiprocessing.get_context('spawn')
     config = None if args.config is None else args.config.resolve()
-    with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config)) as pool:
+    with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config, args.sensor)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from hrn_vo_ros.core.sim.family import (
     draw,
     fresh_seeds,
     FRESH_START,
+    on_sensor,
     preset,
     RANGES,
     SCENE_KINDS,
@@ -127,3 +129,22 @@ def test_simulate_cli_family(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert 'fresh' in capsys.readouterr().out
     assert read_sensor_size(out) == (240, 180)
     assert read_calib(out).fx == pytest.approx(draw('translation', 10_000).calib.fx)
+
+
+def test_on_sensor_scales_the_calibration_keeps_the_field_of_view() -> None:
+    """240x180 -> 640x480: k = 8/3; a pixel centre maps to k (c + 0.5) - 0.5 (the sensor's
+    corner (-0.5, -0.5) stays the corner), so the view angle of every sensor edge is kept."""
+    d = draw('rotation', 10_002)
+    v = on_sensor(d, 640)
+    c, w = d.calib, v.calib
+    assert (w.width, w.height) == (640, 480) and w.dist == c.dist
+    assert w.fx == pytest.approx(c.fx * 8 / 3) and w.fy == pytest.approx(c.fy * 8 / 3)
+    assert w.cx == pytest.approx(8 / 3 * (c.cx + 0.5) - 0.5)
+    assert w.cy == pytest.approx(8 / 3 * (c.cy + 0.5) - 0.5)
+    for edge, (a, f, n) in {'left': (c.cx, c.fx, 0), 'right': (c.cx, c.fx, 240)}.items():
+        angle = math.atan((n - 0.5 - a) / f)
+        scaled = math.atan((n * 8 / 3 - 0.5 - (8 / 3 * (a + 0.5) - 0.5)) / (f * 8 / 3))
+        assert scaled == pytest.approx(angle), edge
+    assert replace(v, calib=c) == d          # nothing else changes
+    with pytest.raises(ConfigError, match='at least 16'):
+        on_sensor(d, 8)
