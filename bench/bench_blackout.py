@@ -58,7 +58,8 @@ import bench_robustness as robust  # noqa: E402
 from hrn_vo_ros.core.evaluation.lag import protocol_lag  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
 from hrn_vo_ros.core.evaluation.samples import GroundTruthArrays  # noqa: E402
-from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
+from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Sequence, Trajectory  # noqa: E402
 from hrn_vo_ros.core.odometry.geometry import (  # noqa: E402
     matrix_to_swing_twist,

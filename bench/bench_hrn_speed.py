@@ -32,7 +32,8 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the working tree's package
 from hrn_vo_ros.core.events.arrays import EventArray  # noqa: E402
-from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.frames import Packetizer  # noqa: E402
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import CameraCalibration  # noqa: E402
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig  # noqa: E402
 from hrn_vo_ros.core.hrn.network import HRN  # noqa: E402

@@ -40,7 +40,8 @@ import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 from hrn_vo_ros.cli import graph as G  # noqa: E402,N812
-from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
+from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.io import bags  # noqa: E402
 from hrn_vo_ros.io.convert import convert  # noqa: E402
 from hrn_vo_ros.io.ecd import read_calib, read_events, write_sequence  # noqa: E402

@@ -88,7 +88,8 @@ from bench_accuracy import CASES  # noqa: E402
 
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
-from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
+from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402

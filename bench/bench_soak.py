@@ -52,7 +52,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from hrn_vo_ros.cli import graph as G  # noqa: E402,N812
 from hrn_vo_ros.core.evaluation.protocol import evaluate  # noqa: E402
 from hrn_vo_ros.core.evaluation.series import EstimateSeries  # noqa: E402
-from hrn_vo_ros.core.events.frames import with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig  # noqa: E402
 from hrn_vo_ros.core.live import make_resonator  # noqa: E402
 from hrn_vo_ros.errors import HrnVoError  # noqa: E402

@@ -51,7 +51,8 @@ import numpy as np  # noqa: E402
 from hrn_vo_ros.cli.run import parse_overrides  # noqa: E402
 from hrn_vo_ros.core.configbase import from_dict  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
-from hrn_vo_ros.core.events.frames import frames_from_events, PacketizerConfig, with_calibration  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Trajectory  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig  # noqa: E402

@@ -17,7 +17,8 @@ from pathlib import Path
 from hrn_vo_ros.cli.main import echo
 from hrn_vo_ros.cli.run import parse_overrides
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.events.frames import frames_from_events, with_calibration
+from hrn_vo_ros.core.events.frames import frames_from_events
+from hrn_vo_ros.core.events.packet_config import with_calibration
 from hrn_vo_ros.core.hrn.config import geometry, needs_focal
 from hrn_vo_ros.core.sim.simulator import simulate
 from hrn_vo_ros.core.spiking.config import SpikingConfig

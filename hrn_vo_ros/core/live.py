@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.clock import Recent, StampChecker, Verdict
-from hrn_vo_ros.core.events.frames import VALIDATED_FRAME
+from hrn_vo_ros.core.events.packet_config import VALIDATED_FRAME
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig, without_unset_sphere

@@ -37,12 +37,8 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import (
-    EventFrame,
-    Packetizer,
-    PacketizerConfig,
-    with_calibration,
-)
+from hrn_vo_ros.core.events.frames import EventFrame, Packetizer
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.pipeline import E, OdometryPipeline

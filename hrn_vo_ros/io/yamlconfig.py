@@ -26,7 +26,7 @@ from typing import Any, get_type_hints
 import yaml
 
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.events.frames import PacketizerConfig
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ecd

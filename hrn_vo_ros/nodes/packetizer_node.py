@@ -42,7 +42,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
 from hrn_vo_ros.core.clock import Throttle
-from hrn_vo_ros.core.events.frames import PacketizerConfig
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig
 from hrn_vo_ros.core.events.stream import DECODE_ERRORS, PacketStream, StreamOutput
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs

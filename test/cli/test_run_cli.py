@@ -15,12 +15,8 @@ from hrn_vo_ros.cli.main import main
 from hrn_vo_ros.core.configbase import describe, flat_keys, to_dict
 from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import (
-    EventFrame,
-    Packetizer,
-    PacketizerConfig,
-    with_calibration,
-)
+from hrn_vo_ros.core.events.frames import EventFrame, Packetizer
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration
 from hrn_vo_ros.core.events.sequence import CameraCalibration, ImuData, Sequence
 from hrn_vo_ros.core.hrn.backends import make_backend
 from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig

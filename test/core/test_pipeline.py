@@ -12,7 +12,8 @@ import pytest
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import Packetizer, PacketizerConfig
+from hrn_vo_ros.core.events.frames import Packetizer
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig
 from hrn_vo_ros.core.events.sequence import ImuData
 from hrn_vo_ros.core.hrn.backends import make_backend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig

@@ -23,12 +23,8 @@ from ros_helpers import spin_until
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import (
-    frames_from_events,
-    Packetizer,
-    paper_framing,
-    with_calibration,
-)
+from hrn_vo_ros.core.events.frames import frames_from_events, Packetizer
+from hrn_vo_ros.core.events.packet_config import paper_framing, with_calibration
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.eventpacket import encode_mono

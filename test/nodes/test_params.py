@@ -144,7 +144,7 @@ CONFIGS = [p for p in PARAMS_FILES if not p.stem.startswith('live')]  # full dat
 @pytest.mark.parametrize('path', CONFIGS, ids=[p.stem for p in CONFIGS])
 def test_yaml_keys_are_the_dataclass_fields(path: Path) -> None:
     from hrn_vo_ros.core.configbase import flat_keys
-    from hrn_vo_ros.core.events.frames import PacketizerConfig
+    from hrn_vo_ros.core.events.packet_config import PacketizerConfig
     from hrn_vo_ros.core.hrn.config import ResonatorConfig
 
     data = yaml.safe_load(path.read_text())
@@ -159,7 +159,7 @@ def test_yaml_keys_are_the_dataclass_fields(path: Path) -> None:
 @pytest.mark.ros
 @pytest.mark.parametrize('path', PARAMS_FILES, ids=[p.stem for p in PARAMS_FILES])
 def test_params_file_declares_the_same_configs_as_yamlconfig(ros: None, path: Path) -> None:
-    from hrn_vo_ros.core.events.frames import PacketizerConfig
+    from hrn_vo_ros.core.events.packet_config import PacketizerConfig
     from hrn_vo_ros.core.hrn.config import ResonatorConfig
     from hrn_vo_ros.io.yamlconfig import load_configs
 

@@ -1,6 +1,7 @@
 """Fixed-count (or time-capped) event packets → binary downsampled event frames (paper Methods).
 
-Polarity is dropped. Coordinates are downsampled by a (possibly fractional) factor ``f``:
+The settings are :class:`~hrn_vo_ros.core.events.packet_config.PacketizerConfig`. Polarity is
+dropped. Coordinates are downsampled by a (possibly fractional) factor ``f``:
 
     x_out = floor((x + 0.5) / f)          # = round((x + 0.5) / f - 0.5): pixel centres map to bins
     W_out = ceil(W / f)
@@ -14,8 +15,9 @@ arm), else 0. The frame time is the midpoint of the first and last event of the 
 ns, rounded down).
 
 **Auto factor** (``downsample: 0``, the default and the live configs): f = max(W / 96, H / 72,
-1), so every sensor gives frames of at most 96x72 (:data:`VALIDATED_FRAME`, the size the network
-was validated at): 2.5 on a DAVIS240C, 3.61 on 346x260, 6.67 on 640x480, 13.3 on 1280x720 (96x54).
+1), so every sensor gives frames of at most 96x72 (:data:`.packet_config.VALIDATED_FRAME`, the
+size the network was validated at): 2.5 on a DAVIS240C, 3.61 on 346x260, 6.67 on 640x480, 13.3
+on 1280x720 (96x54).
 Packets of the same event count then make about the same frames whatever the sensor's
 resolution (docs/results.md: the rotation family on a 640x480 sensor).
 
@@ -60,172 +62,18 @@ Packetizing is vectorised: one ``bincount`` (or one scatter when any event light
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.configbase import nested, param, validate
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.camera import rectified_pixels, RECTIFY_MODES
+from hrn_vo_ros.core.events.camera import rectified_pixels
 from hrn_vo_ros.core.events.denoise import NeighbourFilter
 from hrn_vo_ros.core.events.noise import BackgroundRate
-from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.core.events.packet_config import out_size, PacketizerConfig
 from hrn_vo_ros.errors import ConfigError, DatasetError, TrackingError
-
-
-@dataclass(frozen=True, slots=True)
-class CalibrationConfig:
-    """Intrinsics of the sensor (``calib.txt`` / ``CameraInfo`` plumb-bob), for ``rectify``."""
-
-    fx: float = param(0.0, 'focal length x in sensor pixels (0: unknown, taken from the dataset '
-                      "calib.txt or the node's camera_info topic)", lo=0.0, hi=1e6)
-    fy: float = param(0.0, 'focal length y in sensor pixels (0: unknown)', lo=0.0, hi=1e6)
-    cx: float = param(0.0, 'principal point x in sensor pixels', lo=-1e6, hi=1e6)
-    cy: float = param(0.0, 'principal point y in sensor pixels', lo=-1e6, hi=1e6)
-    dist: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0, 0.0),
-                                    'distortion k1 k2 p1 p2 k3 (radial-tangential / plumb_bob)',
-                                    lo=-1e3, hi=1e3)
-
-    def __post_init__(self) -> None:
-        validate(self)
-        if len(self.dist) != 5:
-            raise ConfigError(f'calib.dist has {len(self.dist)} values; give the 5 plumb-bob '
-                              'coefficients k1 k2 p1 p2 k3')
-        if (self.fx > 0) != (self.fy > 0):
-            raise ConfigError('calib.fx and calib.fy must both be set (> 0) or both be 0')
-
-    @property
-    def known(self) -> bool:
-        """True when the focal lengths are set."""
-        return self.fx > 0
-
-
-@dataclass(frozen=True, slots=True)
-class FramingImuConfig:
-    """Packets when the resonator fuses a gyro: the gyro carries the motion between frames, so
-    a steady frame rate matters more than the information of each frame (docs/demo.md)."""
-
-    enabled: bool = param(False, 'the resonator fuses a gyro (launch use_imu:=true, hrn-vo '
-                          'run --imu): packets close by imu.max_frame_ms')
-    max_frame_ms: float = param(100.0, 'with the gyro, a packet also closes once it spans this '
-                                'many ms and holds at least min_frame_events events; 0: '
-                                'max_frame_ms as without the gyro', lo=0.0, hi=1e6)
-
-
-#: The frame size the network was validated at (96x72: a DAVIS240C at downsample 2.5);
-#: ``downsample: 0`` fits any sensor into it.
-VALIDATED_FRAME = (96, 72)
-
-
-@dataclass(frozen=True, slots=True)
-class PacketizerConfig:
-    """How events become frames (one packet of ``events_per_frame`` events per frame)."""
-
-    events_per_frame: int = param(2000, 'events per packet (2000 shapes, 5000 robot arm)',
-                                  lo=1, hi=10_000_000)
-    sensor_width: int = param(240, 'sensor width in pixels (DAVIS240C 240, Prophesee 640)',
-                              lo=1, hi=65535, read_only=True)
-    sensor_height: int = param(180, 'sensor height in pixels (DAVIS240C 180, Prophesee 480)',
-                               lo=1, hi=65535, read_only=True)
-    downsample: float = param(0.0, 'coordinate downsampling factor f: x_out = floor((x+0.5)/f) '
-                              '(2.5: 240x180 -> 96x72; 10: 640x480 -> 64x48); 0: auto, frames '
-                              'of at most 96x72 from any sensor (f = max(sensor_width / 96, '
-                              'sensor_height / 72, 1))', lo=0.0, hi=1000.0, read_only=True)
-    min_events_per_pixel: int = param(1, 'a frame pixel is 1 with at least this many events '
-                                      '(1: ">0", shapes; 2: ">1", robot arm)', lo=1, hi=1000)
-    rectify: str = param('none', 'move events to an ideal camera before binning: none, pinhole '
-                         '(undistorted), equidistant (undistorted, radius = f * angle); '
-                         'needs calib', choices=RECTIFY_MODES, read_only=True)
-    denoise_ms: float = param(0.0, 'background-activity filter: keep an event only when one '
-                              'of its 8 neighbouring sensor pixels fired in the same or the '
-                              'previous bin of this many ms (lone noise events and hot pixels '
-                              'go; delays events by up to one bin); 0: off', lo=0.0, hi=1000.0)
-    noise_floor_hz: float = param(0.4, 'when the background rate (isolated events per '
-                                  'second per sensor pixel in the first full window of the '
-                                  'stream, noise_window_ms) is at least this and their share '
-                                  'at least noise_share, every frame pixel needs one event '
-                                  'more than min_events_per_pixel (a noisy sensor); no frame '
-                                  'comes out before it is measured; 0: off', lo=0.0, hi=1e6)
-    noise_share: float = param(0.0, 'fewest isolated events per event of that window for the '
-                               'noisy-sensor threshold (a textured scene in motion also makes '
-                               'isolated events, but among many others)', lo=0.0, hi=1.0)
-    noise_window_ms: float = param(250.0, 'window of the background-rate measurement, ms',
-                                   lo=1.0, hi=1e6)
-    noise_isolation_ms: float = param(5.0, 'an event is isolated without another event in its '
-                                      '3x3 pixels within the same or an adjacent bin of this '
-                                      'many ms', lo=0.001, hi=1e6)
-    max_frame_ms: float = param(0.0, 'a packet also closes once it spans this many ms and '
-                                'holds at least min_frame_events events (slow or sparse '
-                                'scenes still give frames at a steady rate); 0: off, every '
-                                'packet holds events_per_frame events', lo=0.0, hi=1e6)
-    min_frame_events: int = param(250, 'fewest events of a packet closed by max_frame_ms (a '
-                                  'still camera waits for them)', lo=1, hi=10_000_000)
-    calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
-    imu: FramingImuConfig = nested(FramingImuConfig, 'packets with a fused gyro')
-
-    def __post_init__(self) -> None:
-        validate(self)
-        if not (math.isfinite(self.downsample)
-                and (self.downsample == 0.0 or self.downsample >= 1.0)):
-            raise ConfigError(f'PacketizerConfig.downsample = {self.downsample}: set a factor '
-                              '>= 1, or 0 for frames of about 96x72 from any sensor')
-        for name, ms in (('max_frame_ms', self.max_frame_ms),
-                         ('imu.max_frame_ms', self.imu.max_frame_ms if self.imu.enabled else 0)):
-            if ms > 0 and self.min_frame_events > self.events_per_frame:
-                raise ConfigError(f'min_frame_events ({self.min_frame_events}) is above '
-                                  f'events_per_frame ({self.events_per_frame}): no packet '
-                                  f'could close by time; lower min_frame_events or set {name} 0')
-
-    @property
-    def frame_ms(self) -> float:
-        """The packet time limit in force: ``imu.max_frame_ms`` when ``imu.enabled`` and it is
-        set, else ``max_frame_ms`` (0: packets close by count only)."""
-        if self.imu.enabled and self.imu.max_frame_ms > 0:
-            return self.imu.max_frame_ms
-        return self.max_frame_ms
-
-    @property
-    def max_frame_ns(self) -> int:
-        """:attr:`frame_ms` in int64 nanoseconds (0: packets close by count only)."""
-        return round(self.frame_ms * 1e6)
-
-    @property
-    def factor(self) -> float:
-        """The downsampling factor in force: ``downsample``, or for 0 (auto) the smallest that
-        fits the sensor into :data:`VALIDATED_FRAME` (at least 1)."""
-        if self.downsample > 0.0:
-            return self.downsample
-        w, h = VALIDATED_FRAME
-        return max(self.sensor_width / w, self.sensor_height / h, 1.0)
-
-    @property
-    def width(self) -> int:
-        """Frame width in pixels, ceil(sensor_width / factor)."""
-        return _out_size(self.sensor_width, self.factor)
-
-    @property
-    def height(self) -> int:
-        """Frame height in pixels, ceil(sensor_height / factor)."""
-        return _out_size(self.sensor_height, self.factor)
-
-
-def paper_framing(**overrides: Any) -> PacketizerConfig:
-    """The paper's packetizer (plain binning: packets of ``events_per_frame`` events, no
-    noise-floor threshold, no time limit with the gyro, downsample 2.5), the defaults of the
-    first rounds, with ``overrides`` (field values) on top; the defaults add the noise floor and
-    the auto downsample of the validated network (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK``
-    is the resonator's counterpart)."""
-    imu = overrides.pop('imu', FramingImuConfig(max_frame_ms=0.0))
-    fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, 'downsample': 2.5, **overrides}
-    return PacketizerConfig(imu=imu, **fields)
-
-
-def _out_size(n: int, f: float) -> int:
-    # Tolerate float noise (240 / 2.5 = 96.00000000000001 must give 96).
-    return max(1, math.ceil(n / f - 1e-9))
 
 
 def downsample_lut(n: int, f: float) -> NDArray[np.intp]:
@@ -235,7 +83,7 @@ def downsample_lut(n: int, f: float) -> NDArray[np.intp]:
         returns (n,) intp.
     """
     out = np.floor((np.arange(n, dtype=np.float64) + 0.5) / f).astype(np.intp)
-    return np.minimum(out, _out_size(n, f) - 1)
+    return np.minimum(out, out_size(n, f) - 1)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -384,21 +232,6 @@ def check_event_frame(image: NDArray[Any], width: int, height: int, max_fill: fl
     return img, not (on == 0 or on > max_fill * img.size)
 
 
-def with_calibration(cfg: PacketizerConfig, calib: CameraCalibration) -> PacketizerConfig:
-    """``cfg`` with ``calib`` filled in from a dataset's calibration when it is still unknown.
-
-    Explicit ``calib.*`` values win; without rectification the config is returned unchanged.
-
-    Raises:
-        DatasetError: if the calibration is for another sensor size.
-    """
-    if cfg.rectify == 'none' or cfg.calib.known:
-        return cfg
-    if (calib.width, calib.height) != (cfg.sensor_width, cfg.sensor_height):
-        raise DatasetError(f'the calibration is for a {calib.width}x{calib.height} sensor, the '
-                           f'events for {cfg.sensor_width}x{cfg.sensor_height}')
-    return replace(cfg, calib=CalibrationConfig(fx=calib.fx, fy=calib.fy, cx=calib.cx,
-                                                cy=calib.cy, dist=tuple(calib.dist)))
 
 
 def rectify_lut(cfg: PacketizerConfig) -> NDArray[np.int32]:

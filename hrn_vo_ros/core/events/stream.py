@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.clock import ClockConfig, Recent, StreamClock, Verdict
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import (
-    Packetizer,
+from hrn_vo_ros.core.events.frames import Packetizer
+from hrn_vo_ros.core.events.packet_config import (
     PacketizerConfig,
     VALIDATED_FRAME,
     with_calibration,

@@ -8,7 +8,8 @@ import pytest
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import distort_points, undistort_points
-from hrn_vo_ros.core.events.frames import Packetizer, paper_framing
+from hrn_vo_ros.core.events.frames import Packetizer
+from hrn_vo_ros.core.events.packet_config import paper_framing
 from hrn_vo_ros.io import eventpacket
 
 # plumb bob, fx = fy = 100, c = 0, only tangential terms p1 = 0.01, p2 = 0.02; at (0.3, 0.1):

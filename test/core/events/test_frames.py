@@ -13,15 +13,17 @@ import pytest
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import distort_points, rectified_pixels, undistort_points
 from hrn_vo_ros.core.events.frames import (
-    CalibrationConfig,
     downsample_lut,
     frames_from_events,
-    FramingImuConfig,
     packet_ends,
     Packetizer,
+    rectify_lut,
+)
+from hrn_vo_ros.core.events.packet_config import (
+    CalibrationConfig,
+    FramingImuConfig,
     PacketizerConfig,
     paper_framing,
-    rectify_lut,
     with_calibration,
 )
 from hrn_vo_ros.core.events.sequence import CameraCalibration

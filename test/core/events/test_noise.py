@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import frames_from_events, Packetizer, PacketizerConfig
+from hrn_vo_ros.core.events.frames import frames_from_events, Packetizer
 from hrn_vo_ros.core.events.noise import BackgroundRate
+from hrn_vo_ros.core.events.packet_config import PacketizerConfig
 from hrn_vo_ros.errors import ConfigError
 
 S = 1_000_000_000

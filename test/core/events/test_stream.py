@@ -9,7 +9,7 @@ import pytest
 
 from hrn_vo_ros.core.clock import ClockConfig, Recent
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.frames import CalibrationConfig, paper_framing
+from hrn_vo_ros.core.events.packet_config import CalibrationConfig, paper_framing
 from hrn_vo_ros.core.events.sequence import CameraCalibration
 from hrn_vo_ros.core.events.stream import packet_problem, PacketStream, StreamOutput
 from hrn_vo_ros.errors import HrnVoError
