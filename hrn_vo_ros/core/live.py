@@ -111,6 +111,16 @@ def sized_config(cfg: ResonatorConfig, width: int, height: int
                        if ratio > 1.5 else ''))
 
 
+def sized_resonator(cfg: ResonatorConfig, width: int, height: int,
+                    make: Callable[[ResonatorConfig], ResonatorBackend]
+                    ) -> tuple[ResonatorBackend | None, str]:
+    """A :data:`Resizer` step: the resonator ``make`` builds for ``cfg`` at ``width`` x
+    ``height``, or None when the config cannot take that size, and the text of
+    :func:`sized_config`."""
+    sized, text = sized_config(cfg, width, height)
+    return (None if sized is None else make(sized)), text
+
+
 class LiveOdometry:
     """The odometry of a live frame and IMU stream (see the module docstring).
 
@@ -204,6 +214,13 @@ class LiveOdometry:
         """Periodic: when the IMU stopped (end of a bag), the waiting frames go anyway."""
         if self.gate.stalled(self._now(), s.imu_timeout_s):
             yield from self._drain(s, force=True)
+
+    def rebuild(self, cfg: ResonatorConfig,
+                make: Callable[[ResonatorConfig], ResonatorBackend]) -> None:
+        """A changed config: a new resonator from ``make``, at the frame size in use when
+        ``cfg`` can take it (an adopted size is kept), else at ``cfg``'s own size."""
+        sized, _ = sized_config(cfg, *self.size)
+        self.reconfigured(make(sized or cfg), self.size if sized else (cfg.width, cfg.height))
 
     def reconfigured(self, estimator: ResonatorBackend, size: tuple[int, int]) -> None:
         """A new resonator, for frames of ``size`` (tracking restarts: no twist across)."""

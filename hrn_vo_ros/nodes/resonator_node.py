@@ -39,7 +39,7 @@ from hrn_vo_ros.core.clock import RateLimit, Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
-from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator, sized_config
+from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator, sized_resonator
 from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
@@ -63,8 +63,8 @@ class ResonatorNode(Node):
         self._live = LiveOdometry(self._make_hrn(cfg), publish.GyroGate(
             cfg.imu.camera_from_imu, max_samples=opts.imu_buffer_samples,
             max_pending=opts.max_pending_frames), (cfg.width, cfg.height),
-            tolerance_ns=int(opts.clock_tolerance_s * 1e9), resize=self._sized_hrn,
-            counts=self.stats.counts)
+            tolerance_ns=int(opts.clock_tolerance_s * 1e9), counts=self.stats.counts,
+            resize=lambda w, h: sized_resonator(self._algo.config, w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._image_rate, self._throttle = RateLimit(), Throttle()
         self._pub_readout = self.create_publisher(JointState, '~/readout', qos(1000))
@@ -121,16 +121,8 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        sized, _ = sized_config(cfg, *self._live.size)     # keep an adopted frame size
-        self._live.reconfigured(self._make_hrn(sized or cfg), self._live.size if sized
-                                else (cfg.width, cfg.height))
+        self._live.rebuild(cfg, self._make_hrn)          # an adopted frame size is kept
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
-
-    def _sized_hrn(self, width: int, height: int) -> tuple[ResonatorBackend | None, str]:
-        """``frame_size: frames``: the resonator for frames of ``width`` x ``height``, or None
-        and why (``core.live.sized_config``)."""
-        cfg, text = sized_config(self._algo.config, width, height)
-        return (None if cfg is None else self._make_hrn(cfg)), text
 
     def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')

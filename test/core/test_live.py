@@ -11,7 +11,14 @@ import numpy as np
 from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig
-from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, sized_config, Step
+from hrn_vo_ros.core.live import (
+    Item,
+    LiveOdometry,
+    LiveSettings,
+    sized_config,
+    sized_resonator,
+    Step,
+)
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.odometry.odometry import OdometryConfig
 from hrn_vo_ros.core.odometry.publish import GyroGate
@@ -220,3 +227,29 @@ def test_sized_config_follows_the_frames_or_says_why_not() -> None:
     fixed = from_dict(ResonatorConfig, {'codebook': {'canvas_width': 100, 'canvas_height': 80}})
     none, why = sized_config(fixed, 128, 96)
     assert none is None and 'cannot take that size' in why
+
+
+def test_rebuild_keeps_an_adopted_size_the_config_can_take_else_its_own() -> None:
+    """A reconfiguration at the adopted 139x104 builds a 139x104 resonator; a config with a
+    fixed 100x80 canvas cannot take it and is built at its own 96x72 (frames of 139x104 are
+    then rejected); sized_resonator builds nothing for a size the config refuses."""
+    made: list[ResonatorConfig] = []
+
+    def make(cfg: ResonatorConfig) -> Any:
+        made.append(cfg)
+        return Scripted()
+
+    lo = live(Scripted())
+    lo.reconfigured(Scripted(), (139, 104))                       # type: ignore[arg-type]
+    lo.rebuild(ResonatorConfig(), make)
+    assert (made[-1].width, made[-1].height) == (139, 104) and lo.size == (139, 104)
+    fixed = from_dict(ResonatorConfig, {'codebook': {'canvas_width': 100, 'canvas_height': 80}})
+    lo.rebuild(fixed, make)
+    assert (made[-1].width, made[-1].height) == (96, 72) and lo.size == (96, 72)
+    assert notes(list(lo.frame(10**9, np.zeros((104, 139), np.uint8), settings()))) == [
+        ('reject', 'size')]
+    none, why = sized_resonator(fixed, 139, 104, make)
+    assert none is None and 'cannot take that size' in why and len(made) == 2
+    est, text = sized_resonator(ResonatorConfig(), 64, 48, make)
+    assert isinstance(est, Scripted) and (made[-1].width, made[-1].height) == (64, 48)
+    assert 'frames are 64x48: the resonator takes that size' in text
