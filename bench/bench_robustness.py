@@ -642,9 +642,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.config is not None and not args.config.is_file():
         print(f'--config: no such file: {args.config}', file=sys.stderr)
         return 2
+    config = None if args.config is None else args.config.resolve()
     if args.sensor is not None:
+        _init({}, config=config)    # this process too resolves config_path as the workers do
         for kind in args.kinds:     # a fixed factor makes frames of another size
-            path = args.config or ROOT / 'config' / CASES[kind].config
+            path = config_path(kind)
             if load_configs(path)[0].downsample != 0:
                 print(f'--sensor: {path} has a fixed packetizer downsample; give a config '
                       'with downsample 0 (e.g. --config config/live.yaml)', file=sys.stderr)
@@ -659,7 +661,6 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     rows = []
     ctx = multiprocessing.get_context('spawn')
-    config = None if args.config is None else args.config.resolve()
     with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config, args.sensor)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
