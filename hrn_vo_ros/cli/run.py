@@ -213,6 +213,9 @@ def run(args: argparse.Namespace) -> int:
                                           'time_us') if k in acc))
     if result.outside:
         echo(f'{result.outside} events rectified outside the frame (not binned)')
+    if result.capped:
+        echo(f'{result.capped} events over the rate cap (max_frame_hz '
+             f'{dc.packetizer.max_frame_hz:g}) not binned')
     n = len(result.series)
     if info is not None and result.stamp_span_ns is not None:
         t = result.series.t

@@ -64,6 +64,7 @@ class DatasetRun:
         series: One readout per event frame.
         seconds: Wall time of the streaming loop.
         outside: Events rectified outside the frame (not binned).
+        capped: Events left out by the event-rate cap (``max_frame_hz``).
     """
 
     series: EstimateSeries
@@ -73,6 +74,7 @@ class DatasetRun:
     state: list[str] = field(default_factory=list)
     events: int = 0
     stamp_span_ns: tuple[int, int] | None = None
+    capped: int = 0
 
 
 def dataset_pipeline(dataset: Path, pcfg: PacketizerConfig, make_estimator: Callable[[], E], *,
@@ -126,7 +128,7 @@ def run_dataset(dataset: Path, pipeline: OdometryPipeline[E], *,
         raise DatasetError(f'fewer events than one packet ({cfg.events_per_frame}); nothing '
                            'to estimate', path=dataset)
     return DatasetRun(pipeline.series(), seconds, packetizer.outside, pipeline.quality(),
-                      pipeline.states())
+                      pipeline.states(), capped=packetizer.capped)
 
 
 def is_bag(path: Path) -> bool:
@@ -363,7 +365,7 @@ def run_bag(info: BagInfo, pipeline: OdometryPipeline[E], *,
     if pipeline.record:
         pipeline.retime(clock.final(np.asarray(sensor_t, dtype=np.int64)))
     return DatasetRun(pipeline.series(), seconds, packetizer.outside, pipeline.quality(),
-                      pipeline.states(), events, clock.span)
+                      pipeline.states(), events, clock.span, packetizer.capped)
 
 
 

@@ -264,6 +264,23 @@ def test_run_bad_inputs_name_the_problem(dataset: Path, tmp_path: Path,
     assert main(['run', str(plain), '--out', out, '--quiet', '--sensor-size', '240x180']) == 0
 
 
+def test_run_reports_the_events_over_the_rate_cap(dataset: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """400 k events/s (2000 per 5 ms over 300 ms) under a cap of 100 frames/s of 2000 events
+    (2000 per 10 ms window): after the first window (1-10 ms, about 3600 events, kept) each
+    window keeps 2000 of its about 4000, so about 63 600 of 120 000 events make 31 frames."""
+    out = tmp_path / 'est.csv'
+    assert main(['run', str(dataset), '--quiet', '--out', str(out),
+                 '--set', 'packetizer.max_frame_hz=100']) == 0
+    text = capsys.readouterr().out
+    line = next(x for x in text.splitlines() if 'over the rate cap' in x)
+    capped = int(line.split()[0])
+    assert 'max_frame_hz 100' in line and 55_000 <= capped <= 58_000
+    assert len(read_estimates(out)) == (120_000 - capped) // 2000
+    assert main(['run', str(dataset), '--quiet', '--out', str(out)]) == 0   # 1500: no cap
+    assert 'rate cap' not in capsys.readouterr().out and len(read_estimates(out)) == 60
+
+
 def test_run_rectifies_with_the_dataset_calibration(dataset: Path, tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """calib.txt is read for rectify; the rectified run still follows the motion."""

@@ -338,3 +338,31 @@ def test_denoising_packetizer_drops_lone_events_and_counts_them(
         assert all(np.array_equal(img, f.image) for (_, img), f in zip(got, ref, strict=True))
         assert lone.wait(lambda: any(d.get('events_denoised') == str(offline.denoised)
                                      for d in diags))
+
+
+def test_rate_capped_packetizer_keeps_an_even_share_and_counts_the_rest(
+        rng: np.random.Generator) -> None:
+    """max_frame_hz as a ROS parameter: 1 M events/s for 60 ms, a cap of 100 frames/s of 500
+    events (500 per 10 ms window): after the first window one event in 20 is kept. The node's
+    frames are the offline packetizer's, on packets that split windows, and /diagnostics counts
+    the events left out."""
+    with lone_packetizer(Parameter('max_frame_hz', value=100.0)) as lone:
+        n = 60_000
+        t = 1_000_000 + np.arange(n, dtype=np.int64) * 1000
+        ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                    np.ones(n, np.uint8))
+        cuts = [0, 7000, 7001, 25_000, 41_234, n]
+        for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+            lone.ev_pub.publish(packet(ev[a:b], seq=i))
+        offline = Packetizer(paper_framing(events_per_frame=PER_FRAME, max_frame_hz=100.0))
+        ref = offline.push(ev)
+        # windows of 10 ms from t = 0: the first (1-10 ms, 9000 events) is kept whole, the next
+        # (10 000 after 9000) keeps floor(10 000 x 500 / 9000) = 555, the four after it 500
+        # each, the last (1000 events, 60-61 ms) at share 1/20: 50; 11 605 kept
+        assert offline.capped == n - 9000 - 555 - 4 * 500 - 50 and len(ref) == 23
+        assert lone.wait(lambda: len(lone.frames) >= len(ref))
+        got = [ros_msgs.image_to_frame(m) for m in lone.frames]
+        assert [tt for tt, _ in got] == [f.t_ns for f in ref]
+        assert all(np.array_equal(img, f.image) for (_, img), f in zip(got, ref, strict=True))
+        assert lone.wait(lambda: any(d.get('events_capped') == str(offline.capped)
+                                     for d in lone.diags))

@@ -31,6 +31,17 @@ the launch file's ``use_imu:=true`` and ``hrn-vo run --imu``) ``imu.max_frame_ms
 more than what each frame holds; without it short sparse frames cost more than they give
 (docs/results.md).
 
+**Event-rate cap** (``max_frame_hz`` > 0, 1500 by default; :mod:`.ratecap`): above
+``events_per_frame * max_frame_hz`` events per second, counted over the previous window of
+``rate_window_ms`` (windows fixed in sensor time), only an even share of the events goes on to
+the packets (one in ``1 / share``, share = cap / that count). The network's time constants
+count frames: a 640x480 sensor in a fast rotation makes 5-30 M events/s, thousands of frames a
+second that each show a fraction of a frame pixel of motion, and errors add up over them (and a
+CPU runs about a thousand frames a second). A DAVIS240C rarely reaches the cap. The decision
+depends only on the events, so streaming equals batch; :attr:`Packetizer.capped` counts the
+events left out. It comes after denoising and the background measurement, before
+rectification.
+
 **Rectification** (``rectify``: ``none``, ``pinhole`` or ``equidistant``; :mod:`.camera`) moves
 each sensor pixel to its rectified continuous position before the same division and rounding, so
 the rounding happens once, at frame resolution. It is a per-sensor-pixel lookup table built from
@@ -73,6 +84,7 @@ from hrn_vo_ros.core.events.camera import rectified_pixels
 from hrn_vo_ros.core.events.denoise import NeighbourFilter
 from hrn_vo_ros.core.events.noise import BackgroundRate
 from hrn_vo_ros.core.events.packet_config import out_size, PacketizerConfig
+from hrn_vo_ros.core.events.ratecap import RateCap
 from hrn_vo_ros.errors import ConfigError, DatasetError, TrackingError
 
 
@@ -273,6 +285,13 @@ def background(cfg: PacketizerConfig) -> BackgroundRate | None:
                           min(window, max(1, round(cfg.noise_isolation_ms * 1e6))))
 
 
+def rate_cap(cfg: PacketizerConfig) -> RateCap | None:
+    """The event-rate cap of ``cfg`` (None when ``max_frame_hz`` is 0)."""
+    if cfg.max_frame_hz <= 0.0:
+        return None
+    return RateCap(cfg.max_per_window, max(1, round(cfg.rate_window_ms * 1e6)))
+
+
 def _noisy(cfg: PacketizerConfig, probe: BackgroundRate | None) -> bool:
     """Whether a stream whose background ``probe`` measured (None, or not measured yet: no)
     needs one event more per frame pixel: isolated rate and share at or above the floors."""
@@ -305,6 +324,9 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
     f = denoiser(cfg)
     if f is not None:
         ev = EventArray.concatenate([f.push(ev), f.flush()])
+    cap = rate_cap(cfg)
+    if cap is not None:
+        ev = cap.push(ev)
     pix, t = b.pixels(ev)
     ends = packet_ends(t, cfg)
     images = b.images(pix, ends, _noisy(cfg, probe))
@@ -331,6 +353,7 @@ class Packetizer:
         self._outside = 0
         self._filter = denoiser(self.cfg)
         self._probe = background(self.cfg)
+        self._cap = rate_cap(self.cfg)
         self._ended = False             # finish() was called: no more waiting for the probe
 
     @property
@@ -347,6 +370,11 @@ class Packetizer:
     def denoised(self) -> int:
         """Events so far dropped by the background-activity filter (``denoise_ms``)."""
         return 0 if self._filter is None else self._filter.dropped
+
+    @property
+    def capped(self) -> int:
+        """Events so far left out by the event-rate cap (``max_frame_hz``)."""
+        return 0 if self._cap is None else self._cap.dropped
 
     @property
     def denoise_pending(self) -> int:
@@ -378,6 +406,8 @@ class Packetizer:
             self._filter.reset()
         if self._probe is not None:
             self._probe.reset()
+        if self._cap is not None:
+            self._cap.reset()
 
     def push(self, ev: EventArray) -> list[EventFrame]:
         """Add events (in time order) and return the frames they complete.
@@ -399,6 +429,8 @@ class Packetizer:
             and self._probe.push(ev.t, ev.x, ev.y) is None
         if self._filter is not None:
             ev = self._filter.push(ev)
+        if self._cap is not None:
+            ev = self._cap.push(ev)
         pix, t = self._b.pixels(ev)
         self._outside += len(ev) - len(t)
         total = self._pending + len(t)

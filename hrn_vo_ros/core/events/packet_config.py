@@ -2,12 +2,13 @@
 
 One dataclass is the single source of truth for the defaults, the YAML files and the ROS
 parameters of the packetizer (``packetizer_node``, ``hrn-vo run``): the packet size and its
-time limits, the downsampling factor (``downsample``; 0, the default: the auto factor that fits
-any sensor into :data:`VALIDATED_FRAME`), the per-pixel threshold, rectification with its
-calibration (:class:`CalibrationConfig`, :func:`with_calibration`), denoising, the noisy-sensor
-threshold and the gyro's packets (:class:`FramingImuConfig`). :func:`paper_framing` is the
-paper's packetizer. The mechanisms are :mod:`.frames` (binning), :mod:`.camera`
-(rectification), :mod:`.denoise` and :mod:`.noise`.
+time limits, the event-rate cap (``max_frame_hz``), the downsampling factor (``downsample``;
+0, the default: the auto factor that fits any sensor into :data:`VALIDATED_FRAME`), the
+per-pixel threshold, rectification with its calibration (:class:`CalibrationConfig`,
+:func:`with_calibration`), denoising, the noisy-sensor threshold and the gyro's packets
+(:class:`FramingImuConfig`). :func:`paper_framing` is the paper's packetizer. The mechanisms
+are :mod:`.frames` (binning), :mod:`.ratecap`, :mod:`.camera` (rectification), :mod:`.denoise`
+and :mod:`.noise`.
 """
 
 from __future__ import annotations
@@ -107,6 +108,14 @@ class PacketizerConfig:
                                 'holds at least min_frame_events events (slow or sparse '
                                 'scenes still give frames at a steady rate); 0: off, every '
                                 'packet holds events_per_frame events', lo=0.0, hi=1e6)
+    max_frame_hz: float = param(1500.0, 'event-rate cap: above events_per_frame x '
+                                'max_frame_hz events per second (the count of the previous '
+                                'rate_window_ms) only an even share of the events is binned, '
+                                'so that a high-resolution sensor in fast motion gives about '
+                                'as many frames per second as the validated 240x180 sensor '
+                                '(and no more than the network runs in real time); 0: off',
+                                lo=0.0, hi=1e7)
+    rate_window_ms: float = param(10.0, 'window of the event-rate cap, ms', lo=0.01, hi=1e6)
     min_frame_events: int = param(250, 'fewest events of a packet closed by max_frame_ms (a '
                                   'still camera waits for them)', lo=1, hi=10_000_000)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
@@ -139,6 +148,11 @@ class PacketizerConfig:
         return round(self.frame_ms * 1e6)
 
     @property
+    def max_per_window(self) -> float:
+        """Events a window of ``rate_window_ms`` keeps at most (0: no cap)."""
+        return self.max_frame_hz * self.events_per_frame * self.rate_window_ms * 1e-3
+
+    @property
     def factor(self) -> float:
         """The downsampling factor in force: ``downsample``, or for 0 (auto) the smallest that
         fits the sensor into :data:`VALIDATED_FRAME` (at least 1)."""
@@ -160,12 +174,13 @@ class PacketizerConfig:
 
 def paper_framing(**overrides: Any) -> PacketizerConfig:
     """The paper's packetizer (plain binning: packets of ``events_per_frame`` events, no
-    noise-floor threshold, no time limit with the gyro, downsample 2.5), the defaults of the
-    first rounds, with ``overrides`` (field values) on top; the defaults add the noise floor and
-    the auto downsample of the validated network (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK``
-    is the resonator's counterpart)."""
+    noise-floor threshold, no time limit with the gyro, no event-rate cap, downsample 2.5), the
+    defaults of the first rounds, with ``overrides`` (field values) on top; the defaults add the
+    noise floor, the rate cap and the auto downsample of the validated network
+    (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK`` is the resonator's counterpart)."""
     imu = overrides.pop('imu', FramingImuConfig(max_frame_ms=0.0))
-    fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, 'downsample': 2.5, **overrides}
+    fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, 'downsample': 2.5,
+              'max_frame_hz': 0.0, **overrides}
     return PacketizerConfig(imu=imu, **fields)
 
 
