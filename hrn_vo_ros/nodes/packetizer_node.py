@@ -80,9 +80,11 @@ class PacketizerNode(Node):
                    f'{self.resolve_topic_name("~/camera_info")})')
         size = (f'{cfg.sensor_width}x{cfg.sensor_height} -> {cfg.width}x{cfg.height}'
                 if opts.sensor_size == 'config' else 'sensor size from the event packets')
+        cap = (f', above {cfg.events_per_frame * cfg.max_frame_hz / 1e6:.3g} M events/s an '
+               'even share binned (max_frame_hz)' if cfg.max_frame_hz > 0 else '')
         self.get_logger().info(
             f'{cfg.events_per_frame} events per frame, {size}, rectify {cfg.rectify}{waiting}, '
-            f'events {"reliable" if opts.events_reliable else "best effort"}')
+            f'events {"reliable" if opts.events_reliable else "best effort"}{cap}')
 
     def _subscribe_camera_info(self) -> None:
         """(Re)create the camera_info subscription: BEST_AVAILABLE resolves against the

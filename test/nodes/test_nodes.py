@@ -365,4 +365,5 @@ def test_rate_capped_packetizer_keeps_an_even_share_and_counts_the_rest(
         assert [tt for tt, _ in got] == [f.t_ns for f in ref]
         assert all(np.array_equal(img, f.image) for (_, img), f in zip(got, ref, strict=True))
         assert lone.wait(lambda: any(d.get('events_capped') == str(offline.capped)
+                                     and d.get('rate_cap_share') == '0.050'
                                      for d in lone.diags))

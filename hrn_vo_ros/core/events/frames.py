@@ -377,6 +377,11 @@ class Packetizer:
         return 0 if self._cap is None else self._cap.dropped
 
     @property
+    def cap_share(self) -> float:
+        """The share of the events the rate cap bins now (1: not capping, or no cap)."""
+        return 1.0 if self._cap is None else self._cap.share
+
+    @property
     def denoise_pending(self) -> int:
         """Events the background-activity filter holds back (its newest, open bin)."""
         return 0 if self._filter is None else self._filter.pending
