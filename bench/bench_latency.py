@@ -16,6 +16,12 @@ the latency percentiles next to the targets (no drop, median ≤ 5 ms, p99 ≤ 2
     scripts/run.sh python bench/bench_latency.py                  # 20 s rotation, seed 11
     scripts/run.sh python bench/bench_latency.py --seconds 5 --work /tmp/lat5
     scripts/run.sh python bench/bench_latency.py --smoke --work /tmp/lat1   # only that it runs
+    scripts/run.sh python bench/bench_latency.py --dataset SEQ --config config/live.yaml
+
+``--config`` gives both nodes another params file (``config/live.yaml``: any sensor size, frames
+of at most 96x72). A frame is completed by the packet holding its last binned event, so the
+event-rate cap (``max_frame_hz``) is followed; denoising and rectification that drop events are
+not (the shipped configs have neither, or keep every event).
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 from hrn_vo_ros.cli import graph as G  # noqa: E402,N812
-from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
+from hrn_vo_ros.core.events.frames import frames_from_events, rate_cap  # noqa: E402
 from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.io import bags  # noqa: E402
 from hrn_vo_ros.io.convert import convert  # noqa: E402
@@ -106,24 +112,31 @@ def load_packets(bag: Path) -> tuple[list[tuple[int, bytes]], list[int]]:
     return out, counts
 
 
-def plan(seq: Path, bag: Path) -> Plan:
+def plan(seq: Path, bag: Path, config: Path) -> Plan:
     """Packets, expected frames and node parameters, derived from the dataset as in ``run``."""
-    pk_over, rs_over = G.dataset_overrides(seq, CONFIG, imu=False)
-    pcfg = dataset_configs(CONFIG, seq, resonator={'imu.enabled': False}).packetizer
+    pk_over, rs_over = G.dataset_overrides(seq, config, imu=False)
+    pcfg = dataset_configs(config, seq, resonator={'imu.enabled': False}).packetizer
     if pcfg.rectify != 'none':      # calib.txt, as hrn-vo run; the node gets it as parameters
         pcfg = with_calibration(pcfg, read_calib(seq))
         c = pcfg.calib
         pk_over = {**pk_over, 'calib.fx': c.fx, 'calib.fy': c.fy, 'calib.cx': c.cx,
                    'calib.cy': c.cy, 'calib.dist': [float(d) for d in c.dist]}
-    t_frames, _ = frames_from_events(read_events(seq), pcfg)
+    events = read_events(seq)
+    t_frames, _ = frames_from_events(events, pcfg)
     packets, counts = load_packets(bag)
-    # frame k is complete with event (k+1)·N − 1: the packet holding it completes the frame
+    # frame k is complete with the (k+1)·N-th binned event: the packet holding it completes
+    # the frame (the rate cap's kept events; denoising and rectification keep them all here)
+    cap = rate_cap(pcfg)
+    binned = (np.arange(len(events)) if cap is None
+              else np.flatnonzero(cap.mask(events.t)))
     cum = np.cumsum(counts)
     n = len(t_frames)
-    completing = np.searchsorted(cum, (np.arange(n) + 1) * pcfg.events_per_frame, side='left')
-    print(f'{len(packets)} packets, {int(cum[-1])} events, {n} frames expected '
-          f'({(packets[-1][0] - packets[0][0]) * 1e-9:.2f} s, {pcfg.events_per_frame} events '
-          f'per frame, rectify {pcfg.rectify})')
+    last = binned[(np.arange(n) + 1) * pcfg.events_per_frame - 1]
+    completing = np.searchsorted(cum, last + 1, side='left')
+    print(f'{len(packets)} packets, {int(cum[-1])} events ({len(binned)} binned), {n} frames '
+          f'expected ({(packets[-1][0] - packets[0][0]) * 1e-9:.2f} s, {pcfg.events_per_frame} '
+          f'events per frame {pcfg.width}x{pcfg.height}, rectify {pcfg.rectify}, '
+          f'{config.name})')
     return Plan(packets, t_frames, completing, pk_over, rs_over)
 
 
@@ -142,7 +155,7 @@ def replay(pub: Any, packets: list[tuple[int, bytes]]) -> np.ndarray:
     return sent
 
 
-def measure(p: Plan, logs: Path) -> Outcome:
+def measure(p: Plan, logs: Path, config: Path) -> Outcome:
     """Start the two nodes, replay the packets, and collect arrivals and diagnostics."""
     frame_of = {int(t): k for k, t in enumerate(p.t_frames)}
     received = np.full(p.n, np.nan)
@@ -163,10 +176,10 @@ def measure(p: Plan, logs: Path) -> Outcome:
     stop = threading.Event()
     try:
         graph.start_module('packetizer_node', 'packetizer_node', G.ros_args(
-            CONFIG, {**p.packetizer, 'diagnostics_period_s': 0.25},
+            config, {**p.packetizer, 'diagnostics_period_s': 0.25},
             {'~/events': G.EVENTS_TOPIC}))
         graph.start_module('resonator_node', 'resonator_node', G.ros_args(
-            CONFIG, {**p.resonator, 'diagnostics_period_s': 0.25},
+            config, {**p.resonator, 'diagnostics_period_s': 0.25},
             {'~/frames': G.FRAMES_TOPIC}))
         sub_node = rclpy.create_node('latency_probe')
         sub_node.create_subscription(Odometry, G.ODOM_TOPIC, on_odom, qos(1000))
@@ -244,14 +257,17 @@ def main() -> int:
     ap.add_argument('--dataset', type=Path, default=None,
                     help='an Event Camera Dataset folder with calib.txt (default: simulate)')
     ap.add_argument('--work', type=Path, default=Path('/tmp/hrn_bench_latency'))
+    ap.add_argument('--config', type=Path, default=CONFIG,
+                    help='params file of both nodes (default config/shapes_rotation.yaml; '
+                    'config/live.yaml for a sensor of any size)')
     ap.add_argument('--smoke', action='store_true',
                     help=f'a {SMOKE_SECONDS:g} s sequence: only that it runs')
     args = ap.parse_args()
     if args.smoke:
         args.seconds = min(args.seconds, SMOKE_SECONDS)
     seq, bag = prepare(args.work, args.seconds, args.seed, args.dataset)
-    p = plan(seq, bag)
-    o = measure(p, args.work / 'logs')
+    p = plan(seq, bag, args.config)
+    o = measure(p, args.work / 'logs', args.config)
     seconds = (p.packets[-1][0] - p.packets[0][0]) * 1e-9
     report(p, o, seconds)
     return 0 if (~np.isnan(o.received)).any() else 1

@@ -115,7 +115,7 @@ class PacketizerConfig:
                                 'as many frames per second as the validated 240x180 sensor '
                                 '(and no more than the network runs in real time); 0: off',
                                 lo=0.0, hi=1e7)
-    rate_window_ms: float = param(10.0, 'window of the event-rate cap, ms', lo=0.01, hi=1e6)
+    rate_window_ms: float = param(10.0, 'window of the event-rate cap, ms', lo=1.0, hi=1e6)
     min_frame_events: int = param(250, 'fewest events of a packet closed by max_frame_ms (a '
                                   'still camera waits for them)', lo=1, hi=10_000_000)
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')

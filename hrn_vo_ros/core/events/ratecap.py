@@ -16,12 +16,13 @@ The decision depends only on the events, in order: the same events give the same
 however they are split into pushes (a stream and a batch agree).
 
 Public API: ``RateCap(max_per_window, window_ns)`` with ``push(ev) -> EventArray``,
-``reset()``, ``kept``, ``dropped`` and ``share`` (the share kept in the current window).
+``mask(t)`` (which events it keeps), ``reset()``, ``kept``, ``dropped`` and ``share`` (the share kept in the current window).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.errors import ConfigError
@@ -68,13 +69,18 @@ class RateCap:
 
     def push(self, ev: EventArray) -> EventArray:
         """The kept events of ``ev`` (in time order, after the previous push's)."""
-        n = len(ev)
+        keep = self.mask(ev.t)
+        return ev if keep.all() else ev[keep]
+
+    def mask(self, t: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Which of the events at times ``t`` (after the previous call's) are kept."""
+        n = len(t)
+        keep = np.ones(n, dtype=bool)
         if n == 0:
-            return ev
-        win = ev.t // self.window_ns
+            return keep
+        win = t // self.window_ns
         starts = np.flatnonzero(np.diff(win)) + 1
         bounds = [0, *starts.tolist(), n]
-        keep = np.ones(n, dtype=bool)
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             w = int(win[a])
             if w != self._window:
@@ -86,4 +92,4 @@ class RateCap:
         n_kept = int(np.count_nonzero(keep))
         self.kept += n_kept
         self.dropped += n - n_kept
-        return ev if n_kept == n else ev[keep]
+        return keep
