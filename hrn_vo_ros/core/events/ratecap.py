@@ -16,7 +16,8 @@ The decision depends only on the events, in order: the same events give the same
 however they are split into pushes (a stream and a batch agree).
 
 Public API: ``RateCap(max_per_window, window_ns)`` with ``push(ev) -> EventArray``,
-``mask(t)`` (which events it keeps), ``reset()``, ``kept``, ``dropped`` and ``share`` (the share kept in the current window).
+``mask(t)`` (which events it keeps), ``reset()``, ``kept``, ``dropped`` and ``share`` (the
+share kept in the current window).
 """
 
 from __future__ import annotations
