@@ -164,8 +164,8 @@ class LiveOdometry:
             yield Note('warn', 'behind', (
                 f'a frame waited {waited_ms:.0f} ms for the resonator (max_queue_ms '
                 f'{s.max_queue_ms:g}): skipped ({self.counts["frames_skipped_behind"]} so far); '
-                'more frames arrive than it runs per second: lower the packetizer\'s '
-                'max_frame_hz, or give the node a faster core'), throttled=True)
+                'more frames arrive than it runs per second: lower max_frame_hz of the '
+                'packetizer, or give the node a faster core'), throttled=True)
             return
         size = (image.shape[1], image.shape[0])
         if size != self.size and s.adopt_size and self.resize is not None:
