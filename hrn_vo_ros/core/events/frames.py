@@ -37,7 +37,7 @@ more than what each frame holds; without it short sparse frames cost more than t
 the packets (one in ``1 / share``, share = cap / that count). The network's time constants
 count frames: a 640x480 sensor in a fast rotation makes 5-30 M events/s, thousands of frames a
 second that each show a fraction of a frame pixel of motion, and errors add up over them (and a
-CPU runs about a thousand frames a second). A DAVIS240C rarely reaches the cap. The decision
+core runs 600-1000 frames a second). A DAVIS240C rarely reaches the cap. The decision
 depends only on the events, so streaming equals batch; :attr:`Packetizer.capped` counts the
 events left out. It comes after denoising and the background measurement, before
 rectification.

@@ -1,17 +1,18 @@
 """Event-rate cap: above a rate, keep an even share of the events (``max_frame_hz``).
 
 The network's time constants count frames (the map's memory, the velocity prediction), and a
-frame costs the CPU about a millisecond. A packet of a fixed event count spans less time the
+frame costs the CPU 1-1.7 ms. A packet of a fixed event count spans less time the
 more events the sensor makes: a 640x480 sensor in a fast rotation makes 5-30 M events/s,
 2500-15000 frames/s of 2000 events, each showing a sub-pixel motion of the 96x72 frame, and
 errors that add up over tens of thousands of frames (docs/results.md). A DAVIS240C seeing the
 same motion makes about 7x fewer events, and the network tracks it.
 
-The cap keeps at most ``max_per_window`` events of each window of ``window_ns`` (bins fixed in
+The cap keeps about ``max_per_window`` events of each window of ``window_ns`` (bins fixed in
 absolute sensor time, ``t // window_ns``), decided from the previous window's count ``n``:
 with ``r = min(1, max_per_window / n)`` the event of index ``i`` in its window (from 0) is
 kept iff ``floor((i + 1) r) > floor(i r)``, so the kept events are spread evenly over the
-window, one in ``1 / r``. A window whose previous window had no event keeps everything.
+window, one in ``1 / r``, ``floor(m r)`` of a window of ``m`` (more than the cap while the
+rate rises). A window whose previous window had no event keeps everything.
 The decision depends only on the events, in order: the same events give the same output
 however they are split into pushes (a stream and a batch agree).
 
