@@ -233,6 +233,9 @@ def report(p: Plan, o: Outcome, seconds: float) -> bool:
     if not got.any():
         print('no odometry received: no latency figures (node logs in --work/logs)')
         return False
+    runs = np.diff(np.flatnonzero(np.concatenate([[True], got, [True]]))) - 1
+    print(f'longest run of frames without odometry: {int(runs.max())} '
+          f'({int((runs > 0).sum())} runs)')
     lat_ms = (o.received[got] - o.sent[p.completing[got]]) * 1e3
     med, p99 = float(np.median(lat_ms)), float(np.percentile(lat_ms, 99))
     print(f'end-to-end latency (packet published -> odometry received): median {med:.2f} ms, '
