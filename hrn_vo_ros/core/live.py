@@ -62,7 +62,6 @@ class LiveSettings:
     min_quality: float
     imu_timeout_s: float
     camera_from_imu: tuple[float, ...]   # 9 values, row-major (``imu.camera_from_imu``)
-    max_queue_ms: float = 0.0      # frames that waited longer are skipped (0: none)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -152,21 +151,9 @@ class LiveOdometry:
         self.size_mismatch = Recent(now)
         self._now = now
 
-    def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings,
-              waited_ms: float = 0.0) -> Iterator[Item]:
+    def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings) -> Iterator[Item]:
         """One decoded frame: checked (of another size: a resonator of its size when the
-        settings adopt sizes), then processed now or when the gyro covers it. A frame that
-        waited ``waited_ms`` in the queue, more than ``max_queue_ms``, is skipped and counted
-        (``frames_skipped_behind``): the resonator runs fewer frames per second than arrive,
-        and the odometry stays current instead of falling further behind."""
-        if 0.0 < s.max_queue_ms < waited_ms:
-            self.counts['frames_skipped_behind'] += 1
-            yield Note('warn', 'behind', (
-                f'a frame waited {waited_ms:.0f} ms for the resonator (max_queue_ms '
-                f'{s.max_queue_ms:g}): skipped ({self.counts["frames_skipped_behind"]} so far); '
-                'more frames arrive than it runs per second: lower max_frame_hz of the '
-                'packetizer, or give the node a faster core'), throttled=True)
-            return
+        settings adopt sizes), then processed now or when the gyro covers it."""
         size = (image.shape[1], image.shape[0])
         if size != self.size and s.adopt_size and self.resize is not None:
             estimator, text = self.resize(*size)

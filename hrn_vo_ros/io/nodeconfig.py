@@ -83,12 +83,6 @@ class ResonatorNodeConfig:
                                     lo=1, hi=100000, read_only=True)
     frames_depth: int = param(1000, 'Queue depth of the frame subscription (RELIABLE)',
                               lo=1, hi=100000, read_only=True)
-    max_queue_ms: float = param(0.0, 'A frame that waited longer than this in the '
-                                'subscription queue (since the middleware received it) is '
-                                'skipped and counted (frames_skipped_behind): when frames come '
-                                'faster than the resonator runs, the odometry stays current '
-                                'instead of lagging by up to frames_depth frames; 0: every '
-                                'frame is processed (lossless replays)', lo=0.0, hi=1e6)
     diagnostics_period_s: float = param(1.0, 'Period of the diagnostics message, seconds',
                                         lo=0.01, hi=3600.0, read_only=True)
     log_throttle_s: float = param(5.0, 'Minimum time between two warnings of one kind, seconds',

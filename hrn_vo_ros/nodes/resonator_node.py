@@ -104,7 +104,7 @@ class ResonatorNode(Node):
         return LiveSettings(opts.frame_size == 'frames', cfg.imu.enabled,
                             'z' in self._hrn.factors, opts.odometry, cfg.focal_px,
                             opts.lost_variance, opts.min_quality, opts.imu_timeout_s,
-                            cfg.imu.camera_from_imu, opts.max_queue_ms)
+                            cfg.imu.camera_from_imu)
 
     def _publish_static_tf(self) -> None:
         """base_link → camera (mount) and camera → IMU (``imu.camera_from_imu``) on /tf_static."""
@@ -124,16 +124,14 @@ class ResonatorNode(Node):
         self._live.rebuild(cfg, self._make_hrn)          # an adopted frame size is kept
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
-    def _on_frame(self, msg: Image, info: dict[str, Any]) -> None:
+    def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')
-        received = int(info.get('received_timestamp') or 0)    # system clock, ns
-        waited_ms = (time.time_ns() - received) * 1e-6 if received > 0 else 0.0
         try:
             t_ns, image = ros_msgs.image_to_frame(msg)
         except HrnVoError as err:
             self._reject('decode', err)
             return
-        self._emit(self._live.frame(t_ns, image, self._settings(), waited_ms))
+        self._emit(self._live.frame(t_ns, image, self._settings()))
 
     def _on_imu(self, msg: Imu) -> None:
         self.stats.count('imu_in')

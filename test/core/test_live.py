@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any
 
@@ -89,23 +88,6 @@ def test_without_imu_each_frame_is_one_step_with_a_twist_from_the_second() -> No
     assert isinstance(second[0], Step) and second[0].out.twist is not None
     assert lo.counts['estimates_out'] == 2 and lo.counts['invalid_frames'] == 0
     assert [g for _, g in est.steps] == [False, False]
-
-
-def test_frames_that_waited_too_long_in_the_queue_are_skipped_and_counted() -> None:
-    """max_queue_ms 50: a frame that waited 50.1 ms is skipped (no step, counted, a throttled
-    warning), one that waited 50 ms or less is processed; 0 processes every frame."""
-    est = Scripted()
-    lo = live(est)
-    s = replace(settings(), max_queue_ms=50.0)
-    assert steps(list(lo.frame(10**9, IMAGE, s, 50.0))) == [10**9]
-    late = list(lo.frame(10**9 + 10 * MS, IMAGE, s, 50.1))
-    assert steps(late) == [] and notes(late) == [('warn', 'behind')]
-    assert isinstance(late[0], Note) and late[0].throttled and '1 so far' in late[0].text
-    assert lo.counts['frames_skipped_behind'] == 1 and len(est.steps) == 1
-    assert steps(list(lo.frame(10**9 + 20 * MS, IMAGE, s, 3.0))) == [10**9 + 20 * MS]
-    assert steps(list(lo.frame(10**9 + 30 * MS, IMAGE, settings(), 5000.0))) == \
-        [10**9 + 30 * MS]
-    assert lo.counts['frames_skipped_behind'] == 1
 
 
 def test_with_imu_frames_wait_for_the_gyro_and_use_it() -> None:

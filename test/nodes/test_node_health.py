@@ -346,22 +346,3 @@ def test_looped_evt3_stream_restarts_the_decoder_time(ros: list[Node],
     # first loop's clock (+2^24 us) and the offset becomes -16.8 s
     assert st.values['clock_offset_ns'] == '0' and st.values['clock_resets'] == '1'
     assert 2e9 < stamps[0] < 2.2e9                            # the sensor time, as converted
-
-
-def test_frames_that_waited_in_the_queue_are_skipped_and_counted(ros: list[Node]) -> None:
-    """max_queue_ms as a ROS parameter, with the middleware's reception stamp: at 1 us every
-    frame has waited longer (taking a message from the queue alone takes more), so none is
-    processed and each is counted; set to 0 at run time, the next frames are processed."""
-    node = resonator(max_queue_ms=0.001)
-    p = start(ros, node)
-    image = np.eye(72, 96, dtype=np.uint8)
-    for k in range(4):
-        p.frame_pub.publish(ros_msgs.frame_to_image(image, 10**9 + k * 10**7, 'cam'))
-    assert p.wait(lambda: (p.last('resonator_node') or Status(OK, '', {})).values.get(
-        'frames_skipped_behind') == '4')
-    assert not p.odoms and node.stats.counts['frames_in'] == 4
-    node.set_parameters([Parameter('max_queue_ms', value=0.0)])
-    for k in range(4, 6):
-        p.frame_pub.publish(ros_msgs.frame_to_image(image, 10**9 + k * 10**7, 'cam'))
-    assert p.wait(lambda: len(p.odoms) == 2)
-    assert node.stats.counts['frames_skipped_behind'] == 4
