@@ -58,6 +58,13 @@ class EventArray:
                           np.concatenate([e.p for e in parts]))
 
 
+def runs(keys: NDArray[np.integer]) -> list[tuple[int, int]]:
+    """The ``[start, end)`` index ranges of the runs of equal consecutive values of ``keys``
+    (e.g. the time bin of each event, in time order), in order; none for no keys."""
+    edges = (np.flatnonzero(np.diff(keys)) + 1).tolist()
+    return list(zip([0, *edges], [*edges, len(keys)], strict=True)) if len(keys) else []
+
+
 class EventChecksum:
     """An order-sensitive running checksum of (t, x, y, p), to prove that nothing was lost.
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from hrn_vo_ros.core.events.arrays import runs
 from hrn_vo_ros.errors import ConfigError
 
 I32 = NDArray[np.int32]
@@ -86,8 +87,7 @@ class BackgroundRate:
         if hi > lo:
             self._count += hi - lo
             k = (t[lo:hi] - start) // b                               # bin of each event
-            edges = np.flatnonzero(np.diff(k)) + 1
-            for a, e in zip(np.r_[0, edges], np.r_[edges, hi - lo], strict=True):
+            for a, e in runs(k):
                 kb = int(k[a])
                 self._decide(kb - 2)        # the bins before kb are complete (time order)
                 cell = y[lo + a:lo + e].astype(np.int64) * self.width + x[lo + a:lo + e]

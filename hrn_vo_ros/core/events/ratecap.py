@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.arrays import EventArray, runs
 from hrn_vo_ros.errors import ConfigError
 
 
@@ -81,9 +81,7 @@ class RateCap:
         if n == 0:
             return keep
         win = t // self.window_ns
-        starts = np.flatnonzero(np.diff(win)) + 1
-        bounds = [0, *starts.tolist(), n]
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in runs(win):
             w = int(win[a])
             if w != self._window:
                 self._enter(w)

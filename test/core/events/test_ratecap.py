@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
-from hrn_vo_ros.core.events.arrays import EventArray
+from hrn_vo_ros.core.events.arrays import EventArray, runs
 from hrn_vo_ros.core.events.frames import frames_from_events, Packetizer
 from hrn_vo_ros.core.events.packet_config import PacketizerConfig, paper_framing
 from hrn_vo_ros.core.events.ratecap import RateCap
@@ -29,6 +29,12 @@ def kept_times(cap: RateCap, ev: EventArray, cuts: tuple[int, ...] = ()) -> list
                                   for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
     assert cap.kept == len(out) and cap.kept + cap.dropped == len(ev)
     return [int(v) for v in out.t]
+
+
+def test_runs_of_equal_keys_by_hand() -> None:
+    """The index ranges the cap (and the background probe) walk window by window."""
+    assert runs(np.array([3, 3, 5, 7, 7, 7])) == [(0, 2), (2, 3), (3, 6)]
+    assert runs(np.array([-1])) == [(0, 1)] and runs(np.array([], np.int64)) == []
 
 
 def test_windows_by_hand() -> None:
