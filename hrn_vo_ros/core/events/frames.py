@@ -244,8 +244,6 @@ def check_event_frame(image: NDArray[Any], width: int, height: int, max_fill: fl
     return img, not (on == 0 or on > max_fill * img.size)
 
 
-
-
 def rectify_lut(cfg: PacketizerConfig) -> NDArray[np.int32]:
     """Flat frame pixel of every sensor pixel (``y * sensor_width + x``) under ``cfg.rectify``.
 

@@ -114,8 +114,7 @@ class PacketizerConfig:
                                 'so that a high-resolution sensor in fast motion gives about '
                                 'as many frames per second as the validated 240x180 sensor '
                                 '(one core runs 600-1000 frames/s: lower it for real time on '
-                                'such a sensor); 0: off',
-                                lo=0.0, hi=1e7)
+                                'such a sensor); 0: off', lo=0.0, hi=1e7)
     rate_window_ms: float = param(10.0, 'window of the event-rate cap, ms', lo=1.0, hi=1e6)
     min_frame_events: int = param(250, 'fewest events of a packet closed by max_frame_ms (a '
                                   'still camera waits for them)', lo=1, hi=10_000_000)

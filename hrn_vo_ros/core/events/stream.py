@@ -201,15 +201,16 @@ class PacketStream:
             first = self.sensor is None
             self.sensor = (w, h)
             vw, vh = VALIDATED_FRAME
+            auto = cfg.downsample == 0
+            factor = f'{ds:.4g}, auto' if auto else f'{ds:.4g}'
+            validated = '' if auto else (f' ({vw}x{vh}, the validated size, needs downsample '
+                                         f'{w / vw:.4g} here, or 0: auto)')
             out.notes.append(Note('info', 'sensor_size', (
                 f'sensor size {w}x{h} from the event packets'
                 + ('' if first else ' (changed: packetizer restarted)')
-                + f': frames are {fw}x{fh} (downsample {ds:.4g}'
-                + (', auto' if cfg.downsample == 0 else '') + '); a resonator with '
+                + f': frames are {fw}x{fh} (downsample {factor}); a resonator with '
                 'frame_size: frames (the live configs) takes that size, else its width/height '
-                'must be the same' + ('' if cfg.downsample == 0 else (
-                    f' ({vw}x{vh}, the validated size, needs downsample {w / vw:.4g} here, or '
-                    '0: auto)')))))
+                f'must be the same{validated}')))
             if self.calib is not None and (self.calib.width, self.calib.height) != (w, h):
                 out.notes.append(Note('warn', 'camera_info_size', 'camera_info is for another '
                                       'sensor size: waiting for a matching one'))
