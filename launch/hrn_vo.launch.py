@@ -40,13 +40,15 @@ ARGUMENTS = [
     ('events_topic', 'event_camera/events',
      'the event_camera_msgs/EventPacket topic of the camera driver or bag'),
     ('camera_info_topic', 'event_camera/camera_info',
-     'the CameraInfo topic (read when the config rectifies without calib.*)'),
+     'the CameraInfo topic (read when the config rectifies without calib.*, and for the '
+     'focal length while focal_px is 0)'),
     ('imu_topic', 'imu', 'the sensor_msgs/Imu topic (used with use_imu:=true)'),
     ('use_imu', 'false', 'fuse the gyro (sets imu.enabled of the resonator and the packetizer)'),
     ('focal_px', '0.0',
      'focal length in frame pixels, fx / the downsample factor the packetizer logs (about '
      '79.6 for a DAVIS240C at 2.5), for the IMU prediction, the sphere correction and the '
-     "odometry calibration (odometry.focal_length_px); 0 keeps the config's values"),
+     "odometry calibration (odometry.focal_length_px); 0: the camera_info's fx / that "
+     "factor, or without one the config's values"),
     ('publish_tf', 'false', 'publish odom -> base_link on /tf'),
     ('use_sim_time', 'false',
      'run the nodes on the /clock topic (the bag player of bag:= then publishes it)'),
@@ -134,7 +136,8 @@ def _nodes(context, *args, **kwargs):
                                       {**resonator, **sim_time})],
              # relative: the packetizer of this namespace
              remappings=[('~/frames', 'packetizer_node/frames'),
-                         ('~/imu', topic['imu_topic'])],
+                         ('~/imu', topic['imu_topic']),
+                         ('~/camera_info', topic['camera_info_topic'])],
              output='screen'),
     ]
     bag = LaunchConfiguration('bag').perform(context)

@@ -81,7 +81,8 @@ def graph_ros_args(params_file: Path | None, *, imu: bool, overrides: dict[str, 
                   {'~/events': events_topic, '~/camera_info': CAMERA_INFO_TOPIC})
     rs_params = {'imu.enabled': imu, 'diagnostics_period_s': 0.25, 'frames_depth': FRAMES_DEPTH,
                  'max_pending_frames': FRAMES_DEPTH, 'imu_depth': 50 * FRAMES_DEPTH, **overrides}
-    rs = ros_args(params_file, rs_params, {'~/frames': FRAMES_TOPIC, '~/imu': imu_topic})
+    rs = ros_args(params_file, rs_params, {'~/frames': FRAMES_TOPIC, '~/imu': imu_topic,
+                                           '~/camera_info': CAMERA_INFO_TOPIC})
     return {'packetizer_node': pk, 'resonator_node': rs}
 
 

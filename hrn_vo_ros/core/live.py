@@ -24,6 +24,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
+import math
 import time
 
 import numpy as np
@@ -33,7 +34,7 @@ from hrn_vo_ros.core.clock import Recent, StampChecker, Verdict
 from hrn_vo_ros.core.events.packet_config import VALIDATED_FRAME
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
-from hrn_vo_ros.core.hrn.config import ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, without_unset_focal
 from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.odometry.odometry import OdometryConfig
 from hrn_vo_ros.core.odometry.publish import (
@@ -46,7 +47,7 @@ from hrn_vo_ros.core.odometry.publish import (
     StaticFrame,
 )
 from hrn_vo_ros.core.pipeline import OdometryPipeline
-from hrn_vo_ros.errors import HrnVoError
+from hrn_vo_ros.errors import DecodeError, HrnVoError
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,11 +87,45 @@ def make_resonator(cfg: ResonatorConfig, seed: int, backend: BackendConfig
                    ) -> tuple[ResonatorBackend, str | None]:
     """The resonator of a node for ``cfg`` (seeded) and a warning text or None.
 
-    Without a focal length it has no sphere correction (a node has no calibration; a live
-    camera should still give odometry): the warning says so.
+    Without a focal length it has no sphere correction and no gyro prediction (a node may have
+    no calibration, or not yet; a live camera should still give odometry): the warning says so.
     """
-    cfg, why = without_unset_sphere(cfg)
+    cfg, why = without_unset_focal(cfg)
     return make_backend(cfg, rng=np.random.default_rng(seed), backend=backend), why
+
+
+#: A camera's focal length fx (sensor pixels) and its sensor size (width, height), from its
+#: camera_info: what :func:`camera_focal_px` scales to frame pixels.
+CameraFocal = tuple[float, tuple[int, int]]
+
+
+def camera_focal(fx: float, width: int, height: int) -> CameraFocal:
+    """A camera's focal length (sensor pixels) and sensor size, checked: a CameraInfo's
+    ``k[0]``, ``width`` and ``height``.
+
+    Raises:
+        DecodeError: for an uncalibrated camera (fx not a positive number) or a bad size.
+    """
+    if width <= 0 or height <= 0:
+        raise DecodeError(f'camera_info size {width}x{height} is not a sensor size')
+    if not (math.isfinite(fx) and fx > 0.0):
+        raise DecodeError(f'camera_info has no focal length (k[0] = {fx:g}: the camera is not '
+                          'calibrated); calibrate it or set focal_px')
+    return fx, (width, height)
+
+
+def camera_focal_px(camera: CameraFocal, frame: tuple[int, int]) -> float:
+    """The focal length in pixels of frames of size ``frame`` binned from ``camera``'s events:
+    fx / D with D = max(W / w, H / h).
+
+    The packetizer's frame is ceil(sensor / D): for its auto factor (``downsample`` 0,
+    D = max(W / 96, H / 72, 1)) this D is the factor exactly (640x480 into 96x72: 6.667;
+    1280x720 into 96x54: 13.33); for a fixed factor the frame's rounding up makes it at most
+    1 / w smaller (346x260 at 2.5 into 139x104: 2.5 from the height, 2.489 from the width).
+    """
+    fx, (sw, sh) = camera
+    w, h = frame
+    return fx / max(sw / w, sh / h)
 
 
 def sized_config(cfg: ResonatorConfig, width: int, height: int
@@ -119,6 +154,63 @@ def sized_resonator(cfg: ResonatorConfig, width: int, height: int,
     :func:`sized_config`."""
     sized, text = sized_config(cfg, width, height)
     return (None if sized is None else make(sized)), text
+
+
+@dataclass(slots=True)
+class FocalLength:
+    """Where a node's focal length (frame pixels) comes from: ``focal_px`` when set, else the
+    camera_info's ``camera`` for the frames in use (:func:`camera_focal_px`), else none (the
+    odometry keeps its own ``focal_length_px``)."""
+
+    camera: CameraFocal | None = None
+    _memo: tuple[OdometryConfig, float, OdometryConfig] | None = None
+
+    def value(self, focal_px: float, frame: tuple[int, int]) -> tuple[float, str]:
+        """The focal length (0 when none) and its source: ``focal_px``, ``camera_info`` or
+        ``odometry.focal_length_px``."""
+        if focal_px > 0.0:
+            return focal_px, 'focal_px'
+        if self.camera is not None:
+            return camera_focal_px(self.camera, frame), 'camera_info'
+        return 0.0, 'odometry.focal_length_px'
+
+    def odometry(self, odo: OdometryConfig, focal_px: float,
+                 frame: tuple[int, int]) -> OdometryConfig:
+        """``odo`` with the camera_info's focal length when that is the source (the one focal
+        length of the node; built once per change, not per frame)."""
+        focal, source = self.value(focal_px, frame)
+        if source != 'camera_info':
+            return odo
+        if self._memo is None or self._memo[:2] != (odo, focal):
+            self._memo = (odo, focal, replace(odo, focal_length_px=focal))
+        return self._memo[2]
+
+    def config(self, cfg: ResonatorConfig, frame: tuple[int, int]) -> ResonatorConfig:
+        """``cfg`` with the camera's focal length for frames of size ``frame`` when its own
+        ``focal_px`` is unset (a set ``focal_px`` wins; no camera, no change)."""
+        if cfg.focal_px > 0.0 or self.camera is None:
+            return cfg
+        return replace(cfg, focal_px=camera_focal_px(self.camera, frame))
+
+    def adopt(self, camera: CameraFocal, cfg: ResonatorConfig,
+              frame: tuple[int, int]) -> tuple[bool, str]:
+        """Take ``camera`` (the first usable camera_info): whether a resonator of ``cfg`` must
+        be rebuilt with its focal length (a gyro or sphere correction waited for it), and the
+        text to log."""
+        self.camera = camera
+        rebuild = needs_focal(cfg)
+        fx, (sw, sh) = camera
+        return rebuild, (f'focal length {camera_focal_px(camera, frame):.4g} frame px from '
+                         f'camera_info (fx {fx:g} on {sw}x{sh}, frames {frame[0]}x{frame[1]}), '
+                         'for the odometry too' + (
+                             '; the resonator restarts with it' if rebuild else ''))
+
+    def missing(self, cfg: ResonatorConfig, topic: str) -> str | None:
+        """Why the gyro or sphere correction of ``cfg`` is off for want of a focal length, and
+        what to do (the text of a WARN), or None."""
+        why = without_unset_focal(cfg)[1] if self.camera is None else None
+        return None if why is None else (f'no focal length: {why}; set focal_px or publish a '
+                                         f'camera_info on {topic}')
 
 
 class LiveOdometry:

@@ -27,6 +27,7 @@ jitter (a few milliseconds).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 import time
@@ -40,6 +41,7 @@ from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.frames import EventFrame, Packetizer
 from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
+from hrn_vo_ros.core.live import camera_focal, camera_focal_px, CameraFocal
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.pipeline import E, OdometryPipeline
 from hrn_vo_ros.errors import BagError, ConfigError, DatasetError, DecodeError
@@ -54,6 +56,7 @@ from hrn_vo_ros.io.yamlconfig import (
 )
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
+CAMERA_INFO_TYPE = 'sensor_msgs/msg/CameraInfo'
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -149,6 +152,8 @@ class BagInfo:
         sensor_size: (width, height) of the first message.
         messages: Message count of the events topic.
         imu_topics: The ``sensor_msgs/msg/Imu`` topics of the bag.
+        camera: fx and sensor size of the first usable ``sensor_msgs/msg/CameraInfo`` (the
+            topic beside the events topic, else the only one), or None.
     """
 
     path: Path
@@ -157,10 +162,12 @@ class BagInfo:
     sensor_size: tuple[int, int]
     messages: int
     imu_topics: tuple[str, ...]
+    camera: CameraFocal | None = None
 
 
 def inspect_bag(path: Path, events_topic: str | None = None) -> BagInfo:
-    """The event topic (default: the only EventPacket topic) and sensor size of a bag.
+    """The event topic (default: the only EventPacket topic), sensor size and camera focal
+    length of a bag.
 
     Raises:
         BagError: for an unreadable bag, no or several EventPacket topics without
@@ -180,11 +187,28 @@ def inspect_bag(path: Path, events_topic: str | None = None) -> BagInfo:
             raise BagError(f'{path}: no EventPacket topic {events_topic}; EventPacket topics: '
                            f'{", ".join(topics) or "none"}')
         count = sum(c.msgcount for c in conns if c.topic == events_topic)
+        camera = _bag_camera(reader, ts, events_topic)
         for m in bags.iter_messages(reader, [events_topic]):
             msg: Any = ts.deserialize_cdr(m.raw, bags.EVENT_PACKET)
             return BagInfo(Path(path), events_topic, str(msg.encoding),
-                           (int(msg.width), int(msg.height)), count, imu)
+                           (int(msg.width), int(msg.height)), count, imu, camera)
     raise BagError(f'{path}: {events_topic} has no messages')
+
+
+def _bag_camera(reader: Any, ts: Any, events_topic: str) -> CameraFocal | None:
+    """fx and sensor size of the first usable CameraInfo of the topic beside
+    ``events_topic`` (``/event_camera/camera_info`` for ``/event_camera/events``), else of
+    the only CameraInfo topic; None without one (or when none is calibrated)."""
+    topics = sorted({c.topic for c in reader.connections if c.msgtype == CAMERA_INFO_TYPE})
+    beside = events_topic.rpartition('/')[0] + '/camera_info'
+    topic = beside if beside in topics else topics[0] if len(topics) == 1 else None
+    if topic is None:
+        return None
+    for m in bags.iter_messages(reader, [topic]):
+        msg: Any = ts.deserialize_cdr(m.raw, CAMERA_INFO_TYPE)
+        with contextlib.suppress(DecodeError):
+            return camera_focal(float(msg.k[0]), int(msg.width), int(msg.height))
+    return None
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -482,11 +506,14 @@ def input_configs(config: Path | None, source: Path, *, bag: BagInfo | None = No
     rs = dict(resonator or {})
     pcfg, rcfg = load_configs(config, packetizer=pk, resonator=rs)
     rs.update(width=pcfg.width, height=pcfg.height)
-    if needs_focal(rcfg):
+    if bag is not None and rcfg.focal_px <= 0.0 and bag.camera is not None:
+        rs['focal_px'] = camera_focal_px(bag.camera, (pcfg.width, pcfg.height))   # as the node
+    elif needs_focal(rcfg):
         if bag is not None:
             raise ConfigError('the IMU prediction and the sphere correction need the focal '
-                              'length and a bag has no calib.txt: pass --set focal_px=F '
-                              '(frame pixels) or --set sphere.enabled=false')
+                              'length and the bag has no calib.txt nor a calibrated '
+                              'CameraInfo: pass --set focal_px=F (frame pixels) or --set '
+                              'sphere.enabled=false')
         rs['focal_px'] = ecd.read_calib(source).fx / pcfg.factor
     pcfg, rcfg = load_configs(config, packetizer=pk, resonator=rs)
     problem = sphere_rectify_problem(pcfg.rectify, rcfg)

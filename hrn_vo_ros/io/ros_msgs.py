@@ -39,6 +39,7 @@ from tf2_msgs.msg import TFMessage
 
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.core.live import camera_focal, CameraFocal
 from hrn_vo_ros.core.odometry.odometry import OdomPose, quat_from_matrix, Twist
 from hrn_vo_ros.core.odometry.publish import child_frame_id, StaticFrame
 from hrn_vo_ros.errors import DecodeError
@@ -156,6 +157,17 @@ def camera_info_to_calibration(msg: Any) -> CameraCalibration:
     d5 = (d + [0.0] * 5)[:5]
     return CameraCalibration(width=w, height=h, fx=k[0], fy=k[4], cx=k[2], cy=k[5],
                              dist=(d5[0], d5[1], d5[2], d5[3], d5[4]))
+
+
+def camera_info_focal(msg: Any) -> CameraFocal:
+    """``(fx, (width, height))`` of a ``sensor_msgs/CameraInfo`` (of rclpy or a bag reader):
+    the focal length in sensor pixels and the sensor size, any distortion model (the resonator
+    needs no more; ``core.live.camera_focal``).
+
+    Raises:
+        DecodeError: for an uncalibrated camera (fx not a positive number) or a bad size.
+    """
+    return camera_focal(float(msg.k[0]), int(msg.width), int(msg.height))
 
 
 def image_to_frame(msg: Any) -> tuple[int, NDArray[np.uint8]]:

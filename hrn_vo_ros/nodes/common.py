@@ -12,6 +12,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo
 
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ros_msgs
@@ -47,6 +48,41 @@ class Rejects:
             logger = self._loggers[kind] = self._node.get_logger().get_child(kind)
         logger.warning(f'dropped a message ({kind}, {self._stats.bad[kind]} so far): {detail}',
                        throttle_duration_sec=self._throttle_s())
+
+
+class CameraInfoInput:
+    """A node's ``~/camera_info`` subscription (``sensor_msgs/CameraInfo``, depth 1) that takes
+    latched and volatile publishers alike.
+
+    BEST_AVAILABLE resolves against the publishers present when it is created, so the caller's
+    timer calls :meth:`recheck`, which re-subscribes when the set of publishers changed.
+    """
+
+    def __init__(self, node: Node, callback: Callable[[CameraInfo], None]) -> None:
+        self._node, self._callback = node, callback
+        self.topic = node.resolve_topic_name('~/camera_info')
+        self._sub: Any = None
+        self._publishers = -1
+        self._subscribe()
+
+    def _subscribe(self) -> None:
+        self.close()
+        self._publishers = self._node.count_publishers(self.topic)
+        latched_or_not = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_AVAILABLE,
+                                    durability=DurabilityPolicy.BEST_AVAILABLE)
+        self._sub = self._node.create_subscription(CameraInfo, '~/camera_info', self._callback,
+                                                   latched_or_not)
+
+    def recheck(self) -> None:
+        """Re-subscribe if the publishers of the topic changed since the last subscription."""
+        if self._sub is not None and self._node.count_publishers(self.topic) != self._publishers:
+            self._subscribe()
+
+    def close(self) -> None:
+        """Stop listening (no more callbacks)."""
+        if self._sub is not None:
+            self._node.destroy_subscription(self._sub)
+            self._sub = None
 
 
 _RANK = {'ok': 0, 'warn': 1, 'error': 2, 'stale': 3}

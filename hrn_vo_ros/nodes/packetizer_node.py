@@ -38,7 +38,6 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray
 from event_camera_msgs.msg import EventPacket
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
 from hrn_vo_ros.core.clock import Throttle
@@ -47,7 +46,14 @@ from hrn_vo_ros.core.events.stream import DECODE_ERRORS, PacketStream, StreamOut
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import PacketizerNodeConfig
-from hrn_vo_ros.nodes.common import publish_diagnostics, qos, Rejects, run, worst
+from hrn_vo_ros.nodes.common import (
+    CameraInfoInput,
+    publish_diagnostics,
+    qos,
+    Rejects,
+    run,
+    worst,
+)
 from hrn_vo_ros.nodes.params import declare_config
 from hrn_vo_ros.nodes.stats import NodeStats
 
@@ -64,10 +70,8 @@ class PacketizerNode(Node):
         self._stream = PacketStream(cfg, sensor_size=opts.sensor_size, clock=opts.clock,
                                     counts=self.stats.counts)
         self._reader, self._throttle = ros_msgs.PacketReader(), Throttle()
-        self._camera_info_sub: Any = None
-        self._camera_info_pubs = -1
-        if self._stream.needs_camera_info:
-            self._subscribe_camera_info()
+        self._camera_info = (CameraInfoInput(self, self._on_camera_info)
+                             if self._stream.needs_camera_info else None)
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._pub = self.create_publisher(Image, '~/frames', qos(opts.frames_depth))
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -85,18 +89,6 @@ class PacketizerNode(Node):
         self.get_logger().info(
             f'{cfg.events_per_frame} events per frame, {size}, rectify {cfg.rectify}{waiting}, '
             f'events {"reliable" if opts.events_reliable else "best effort"}{cap}')
-
-    def _subscribe_camera_info(self) -> None:
-        """(Re)create the camera_info subscription: BEST_AVAILABLE resolves against the
-        publishers present now, so it is re-resolved when they change (``_on_timer``)."""
-        if self._camera_info_sub is not None:
-            self.destroy_subscription(self._camera_info_sub)
-        topic = self.resolve_topic_name('~/camera_info')
-        self._camera_info_pubs = self.count_publishers(topic)
-        latched_or_not = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_AVAILABLE,
-                                    durability=DurabilityPolicy.BEST_AVAILABLE)
-        self._camera_info_sub = self.create_subscription(
-            CameraInfo, '~/camera_info', self._on_camera_info, latched_or_not)
 
     def _reconfigure(self, cfg: PacketizerConfig) -> None:
         """A tunable changed: start a new packetizer (pending events are dropped)."""
@@ -159,10 +151,8 @@ class PacketizerNode(Node):
     def _on_timer(self) -> None:
         extra = self._stream.diagnostic_values(f'{self.stats.rate("frames_out"):.1f}',
                                                self._pub.get_subscription_count())
-        if self._stream.packetizer is None and self._camera_info_sub is not None:
-            pubs = self.count_publishers(self.resolve_topic_name('~/camera_info'))
-            if pubs != self._camera_info_pubs:
-                self._subscribe_camera_info()       # re-resolve the QoS for the new publishers
+        if self._stream.packetizer is None and self._camera_info is not None:
+            self._camera_info.recheck()
         window_s = self._opts.config.diagnostics_window_s
         level, message = worst(*self._stream.states(window_s))
         publish_diagnostics(self, self._diag, self.stats, extra, level=level, message=message,

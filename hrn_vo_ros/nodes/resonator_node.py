@@ -2,7 +2,11 @@
 
 Subscribes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, RELIABLE) and, with the resonator's
 ``imu.enabled``, ``~/imu`` (``sensor_msgs/Imu``, best effort depth 1000; frames wait, bounded,
-until a gyro sample at or after their time arrived). Publishes, stamped with the frame time:
+until a gyro sample at or after their time arrived). With ``focal_px`` 0 it takes the focal
+length from the first ``~/camera_info`` (the camera's ``sensor_msgs/CameraInfo``, latched or
+not): fx / D in frame pixels, D = max(sensor / frame size per axis), for the odometry too; a
+gyro or sphere correction that needs it stays off until then (WARN). Publishes, stamped with
+the frame time:
 ``~/readout`` (raw h, v, r [, z], quality and state code, ``sensor_msgs/JointState``),
 ``~/pose`` (PoseStamped) and ``~/odom`` (nav_msgs/Odometry with covariance) in
 ``odom_frame_id``, ``/tf`` with ``publish_tf``, ``~/map_image`` and ``~/readout_image`` (mono8,
@@ -32,19 +36,33 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image, Imu, JointState
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
 from hrn_vo_ros.core.clock import RateLimit, Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
-from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator, sized_resonator
+from hrn_vo_ros.core.live import (
+    FocalLength,
+    Item,
+    LiveOdometry,
+    LiveSettings,
+    make_resonator,
+    sized_resonator,
+)
 from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
-from hrn_vo_ros.nodes.common import publish_diagnostics, qos, Rejects, run, worst
+from hrn_vo_ros.nodes.common import (
+    CameraInfoInput,
+    publish_diagnostics,
+    qos,
+    Rejects,
+    run,
+    worst,
+)
 from hrn_vo_ros.nodes.params import declare_config
 from hrn_vo_ros.nodes.stats import NodeStats
 
@@ -60,11 +78,13 @@ class ResonatorNode(Node):
                                        on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
         self.stats = NodeStats()
+        self._focal = FocalLength()                       # focal_px, or a camera_info's
         self._live = LiveOdometry(self._make_hrn(cfg), publish.GyroGate(
             cfg.imu.camera_from_imu, max_samples=opts.imu_buffer_samples,
             max_pending=opts.max_pending_frames), (cfg.width, cfg.height),
             tolerance_ns=int(opts.clock_tolerance_s * 1e9), counts=self.stats.counts,
-            resize=lambda w, h: sized_resonator(self._algo.config, w, h, self._make_hrn))
+            resize=lambda w, h: sized_resonator(self._focal.config(self._algo.config, (w, h)),
+                                                w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._image_rate, self._throttle = RateLimit(), Throttle()
         self._pub_readout = self.create_publisher(JointState, '~/readout', qos(1000))
@@ -81,10 +101,14 @@ class ResonatorNode(Node):
         if cfg.imu.enabled:
             self.create_subscription(Imu, '~/imu', self._on_imu, qos(
                 opts.imu_depth, reliable=opts.imu_reliable, keep_all=opts.imu_reliable))
+        self._camera_info = (CameraInfoInput(self, self._on_camera_info)
+                             if cfg.focal_px <= 0.0 else None)
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
         self.get_logger().info(f'{cfg.width}x{cfg.height} frames' + (
             ' (or the size of the frames)' if opts.frame_size == 'frames' else '')
-            + f', factors {"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}')
+            + f', factors {"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}' + (
+                '' if self._camera_info is None else ', focal length from the first camera_info'
+                f' on {self._camera_info.topic} (focal_px 0)'))
 
     @property
     def _hrn(self) -> ResonatorBackend:
@@ -99,10 +123,14 @@ class ResonatorNode(Node):
         return hrn
 
     def _settings(self) -> LiveSettings:
-        """The settings ``core/live.py`` reads now (parameters may change between messages)."""
-        opts, cfg = self._opts.config, self._algo.config
-        return LiveSettings(opts.frame_size == 'frames', cfg.imu.enabled,
-                            'z' in self._hrn.factors, opts.odometry, cfg.focal_px,
+        """The settings ``core/live.py`` reads now (parameters may change between messages):
+        the gyro as the resonator runs it (off while the focal length is unknown), a
+        camera_info's focal length also for the odometry."""
+        opts, cfg, size = self._opts.config, self._algo.config, self._live.size
+        focal = self._focal.value(cfg.focal_px, size)[0]
+        return LiveSettings(opts.frame_size == 'frames', cfg.imu.enabled and focal > 0.0,
+                            'z' in self._hrn.factors,
+                            self._focal.odometry(opts.odometry, cfg.focal_px, size), focal,
                             opts.lost_variance, opts.min_quality, opts.imu_timeout_s,
                             cfg.imu.camera_from_imu)
 
@@ -121,8 +149,24 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        self._live.rebuild(cfg, self._make_hrn)          # an adopted frame size is kept
+        self._live.rebuild(self._focal.config(cfg, self._live.size), self._make_hrn)
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
+
+    def _on_camera_info(self, msg: CameraInfo) -> None:
+        """The first usable camera_info gives the focal length while ``focal_px`` is unset;
+        a resonator that needs it (gyro, sphere correction) is rebuilt with it."""
+        try:
+            camera = ros_msgs.camera_info_focal(msg)
+        except HrnVoError as err:
+            self._reject('camera_info', err)
+            return
+        if self._camera_info is not None:
+            self._camera_info.close()
+        rebuild, text = self._focal.adopt(camera, self._algo.config, self._live.size)
+        if rebuild:
+            self._live.rebuild(self._focal.config(self._algo.config, self._live.size),
+                               self._make_hrn)
+        self.get_logger().info(text)
 
     def _on_frame(self, msg: Image) -> None:
         self.stats.count('frames_in')
@@ -173,12 +217,20 @@ class ResonatorNode(Node):
 
     def _on_timer(self) -> None:
         self._emit(self._live.tick(self._settings()))
+        if self._focal.camera is None and self._camera_info is not None:
+            self._camera_info.recheck()
+        focal, source = self._focal.value(self._algo.config.focal_px, self._live.size)
         extra = self._live.diagnostic_values(
             f'{self.stats.rate("estimates_out"):.1f}', min(
                 p.get_subscription_count() for p in self._outputs[:3]),
-            self._pub_odom.get_subscription_count()) + self._extra_diagnostics()
+            self._pub_odom.get_subscription_count()) + [
+                ('focal_px', f'{focal or self._opts.config.odometry.focal_length_px:.6g}'),
+                ('focal_source', source)] + self._extra_diagnostics()
         window_s = self._opts.config.diagnostics_window_s
-        level, message = worst(*self._live.states(window_s))
+        missing = self._focal.missing(self._algo.config,
+                                      self.resolve_topic_name('~/camera_info'))
+        level, message = worst(*self._live.states(window_s),
+                               *([('warn', missing)] if missing else []))
         publish_diagnostics(self, self._diag, self.stats, extra, level=level,
                             message='running' if level == 'ok' else message, window_s=window_s)
 

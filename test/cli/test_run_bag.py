@@ -111,3 +111,30 @@ def test_tum_rotation(tmp_path: Path, rot_seq: Path) -> None:
     # within 2x of the protocol's median (which also fits the scale): measured 0.32 vs 0.26 deg
     # on this sequence; the pinhole (atan) reading of equidistant frames gave 0.65
     assert geo <= 2 * median, (geo, median)
+
+
+def test_bag_with_a_camera_info_gives_the_focal_length(tmp_path: Path, rot_seq: Path) -> None:
+    """No calib.txt beside a bag: its CameraInfo gives fx / D, for the gyro and the TUM poses
+    (before, the gyro refused to start without --set focal_px)."""
+    bag = tmp_path / 'bag'
+    assert hrn_vo('convert', str(rot_seq), str(bag)).returncode == 0
+    fx = float((rot_seq / 'calib.txt').read_text().split()[0])
+    est, tum = tmp_path / 'est.csv', tmp_path / 'est.tum'
+    res = hrn_vo('run', str(bag), *LIVE, '--imu-topic', '/imu', '--out', str(est),
+                 '--tum', str(tum), '--quiet')
+    assert res.returncode == 0, res.stderr
+    ef = read_estimate_file(est)
+    assert len(ef.series) > 100
+    e = np.loadtxt(tum)
+    from scipy.spatial.transform import Rotation
+    R = Rotation.from_quat(e[:, 4:]).as_matrix()
+    pan = np.arctan2(R[:, 0, 2], R[:, 2, 2])         # R = Ry(pan) Rx(tilt) Rz(roll)
+    h = ef.series.h
+    moved = np.abs(h) > 1.0
+    assert moved.sum() > 50
+    np.testing.assert_allclose(pan[moved], np.arctan(h[moved] / (fx / 2.5)), rtol=1e-6)
+    assert fx / 2.5 != pytest.approx(79.6, rel=1e-5)      # not live.yaml's focal_length_px
+    if (BAGS / 'test_events_2').is_dir():     # no CameraInfo (a driver bag): still refused
+        res = hrn_vo('run', str(BAGS / 'test_events_2'), *LIVE, '--set', 'imu.enabled=true',
+                     '--out', str(tmp_path / 'e2.csv'), '--quiet')
+        assert res.returncode != 0 and 'nor a calibrated CameraInfo' in res.stderr

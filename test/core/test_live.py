@@ -12,6 +12,8 @@ from hrn_vo_ros.core.configbase import from_dict
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig
 from hrn_vo_ros.core.live import (
+    camera_focal_px,
+    FocalLength,
     Item,
     LiveOdometry,
     LiveSettings,
@@ -253,3 +255,39 @@ def test_rebuild_keeps_an_adopted_size_the_config_can_take_else_its_own() -> Non
     est, text = sized_resonator(ResonatorConfig(), 64, 48, make)
     assert isinstance(est, Scripted) and (made[-1].width, made[-1].height) == (64, 48)
     assert 'frames are 64x48: the resonator takes that size' in text
+
+
+def test_camera_focal_length_in_frame_pixels_by_hand() -> None:
+    """fx / D with D the binning factor the packetizer used, read off the two sizes."""
+    assert camera_focal_px((199.09, (240, 180)), (96, 72)) == 199.09 / 2.5
+    assert camera_focal_px((500.0, (640, 480)), (96, 72)) == 75.0           # D 6.667
+    assert camera_focal_px((1000.0, (1280, 720)), (96, 54)) == 75.0         # D 13.33, 16:9
+    assert camera_focal_px((250.0, (346, 260)), (96, 72)) == 250.0 / (260 / 72)   # auto 3.611
+    assert camera_focal_px((250.0, (346, 260)), (139, 104)) == 100.0        # fixed 2.5
+    assert camera_focal_px((100.0, (64, 48)), (64, 48)) == 100.0            # no binning
+
+
+def test_focal_length_source_order_and_what_it_changes() -> None:
+    rot = from_dict(ResonatorConfig, {'imu': {'enabled': True}})
+    odo = OdometryConfig(focal_length_px=79.6)
+    f = FocalLength()
+    assert f.value(0.0, (96, 72)) == (0.0, 'odometry.focal_length_px')
+    assert f.odometry(odo, 0.0, (96, 72)) is odo and f.config(rot, (96, 72)) is rot
+    warn = f.missing(rot, '/cam/camera_info')
+    assert warn is not None and 'imu.enabled needs focal_px' in warn
+    assert warn.endswith('set focal_px or publish a camera_info on /cam/camera_info')
+    assert f.missing(from_dict(ResonatorConfig, {}), '/x') is None      # nothing needs it
+    rebuild, text = f.adopt((500.0, (640, 480)), rot, (96, 72))
+    assert rebuild and text.startswith('focal length 75 frame px from camera_info (fx 500 on '
+                                       '640x480, frames 96x72)')
+    assert f.value(0.0, (96, 72)) == (75.0, 'camera_info') and f.missing(rot, '/x') is None
+    assert f.value(80.0, (96, 72)) == (80.0, 'focal_px')              # a set focal_px wins
+    with_cam = f.odometry(odo, 0.0, (96, 72))
+    assert with_cam.focal_length_px == 75.0 and f.odometry(odo, 0.0, (96, 72)) is with_cam
+    assert f.odometry(odo, 0.0, (48, 36)).focal_length_px == 37.5       # another frame size
+    assert f.odometry(odo, 80.0, (96, 72)) is odo
+    assert f.config(rot, (96, 72)).focal_px == 75.0
+    kept = from_dict(ResonatorConfig, {'imu': {'enabled': True}, 'focal_px': 80.0})
+    assert f.config(kept, (96, 72)) is kept
+    plain = FocalLength()
+    assert plain.adopt((500.0, (640, 480)), from_dict(ResonatorConfig, {}), (96, 72))[0] is False

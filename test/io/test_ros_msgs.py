@@ -119,6 +119,18 @@ def test_camera_info_gives_the_plumb_bob_calibration_or_a_clear_error() -> None:
         ros_msgs.camera_info_to_calibration(CameraInfo(width=0, height=180, k=k))
 
 
+def test_camera_info_focal_length_any_model() -> None:
+    k = [199.1, 0.0, 121.3, 0.0, 198.8, 89.6, 0.0, 0.0, 1.0]
+    eq = CameraInfo(width=240, height=180, k=k, distortion_model='equidistant', d=[0.1] * 4)
+    assert ros_msgs.camera_info_focal(eq) == (199.1, (240, 180))
+    with pytest.raises(DecodeError, match=r'k\[0\] = 0: the camera is not calibrated'):
+        ros_msgs.camera_info_focal(CameraInfo(width=240, height=180))
+    with pytest.raises(DecodeError, match='k.0. = nan'):
+        ros_msgs.camera_info_focal(CameraInfo(width=240, height=180, k=[math.nan] + k[1:]))
+    with pytest.raises(DecodeError, match='size 240x0'):
+        ros_msgs.camera_info_focal(CameraInfo(width=240, height=0, k=k))
+
+
 def test_static_transform_of_a_camera_looking_down() -> None:
     cfg = OdometryConfig(mount_xyz=(0.5, 0.0, 1.0), mount_rpy=(0.0, math.pi / 2, 0.0))
     R, t = mount_transform(cfg)

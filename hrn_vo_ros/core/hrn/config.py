@@ -389,14 +389,20 @@ def sphere_rectify_problem(rectify: str, cfg: ResonatorConfig) -> str | None:
     return None
 
 
-def without_unset_sphere(cfg: ResonatorConfig) -> tuple[ResonatorConfig, str | None]:
-    """``cfg`` with the sphere correction off, and why, if ``focal_px`` is unset (a caller
-    without a calibration, such as the resonator node, still runs); else ``(cfg, None)``."""
-    if not (cfg.sphere.enabled and not cfg.focal_px):
+def without_unset_focal(cfg: ResonatorConfig) -> tuple[ResonatorConfig, str | None]:
+    """``cfg`` with the features that need ``focal_px`` (the sphere correction, the IMU
+    prediction) off, and why, if ``focal_px`` is unset (a caller without a calibration, such
+    as the resonator node before a camera_info, still runs); else ``(cfg, None)``."""
+    if not needs_focal(cfg):
         return cfg, None
-    return replace(cfg, sphere=replace(cfg.sphere, enabled=False)), (
-        'sphere.enabled needs focal_px (fx / downsample, in frame pixels; about 79.6 for a '
-        'DAVIS240C at 2.5) as a start parameter: running without the sphere correction')
+    off = [name for name, on in (('sphere.enabled', cfg.sphere.enabled),
+                                 ('imu.enabled', cfg.imu.enabled)) if on]
+    return replace(cfg, sphere=replace(cfg.sphere, enabled=False),
+                   imu=replace(cfg.imu, enabled=False)), (
+        f'{" and ".join(off)} need{"s" if len(off) == 1 else ""} focal_px (fx / downsample, '
+        'in frame pixels; about 79.6 for a DAVIS240C at 2.5): running without the '
+        + ' and the '.join({'sphere.enabled': 'sphere correction',
+                            'imu.enabled': 'gyro'}[name] for name in off))
 
 
 #: The network as the paper runs it (one resonator iteration per frame, gamma 0.5, beta 10,

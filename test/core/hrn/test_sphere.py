@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hrn_vo_ros.core.configbase import from_dict
-from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, without_unset_sphere
+from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, without_unset_focal
 from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.sphere import SphereWarp
 from hrn_vo_ros.errors import ConfigError
@@ -100,10 +100,16 @@ def test_focal_length_policy_for_callers_without_a_calibration() -> None:
     assert not needs_focal(from_dict(ResonatorConfig, {}))
     assert not needs_focal(from_dict(ResonatorConfig, {'sphere': {'enabled': True},
                                                        'focal_px': 80.0}))
-    off, why = without_unset_sphere(on)
+    off, why = without_unset_focal(on)
     assert not off.sphere.enabled and why is not None and 'focal_px' in why
+    assert why.startswith('sphere.enabled needs focal_px') and why.endswith('sphere correction')
+    both = from_dict(ResonatorConfig, {'sphere': {'enabled': True}, 'imu': {'enabled': True}})
+    off, why = without_unset_focal(both)
+    assert not (off.sphere.enabled or off.imu.enabled) and off.imu.gamma == both.imu.gamma
+    assert why is not None and why.startswith('sphere.enabled and imu.enabled need focal_px')
+    assert why.endswith('without the sphere correction and the gyro')
     kept = from_dict(ResonatorConfig, {'sphere': {'enabled': True}, 'focal_px': 80.0})
-    assert without_unset_sphere(kept) == (kept, None)
+    assert without_unset_focal(kept) == (kept, None)
 
 
 def render(dots: np.ndarray, rot: Rotation) -> np.ndarray:
