@@ -42,7 +42,9 @@ ARGUMENTS = [
     ('camera_info_topic', 'event_camera/camera_info',
      'the CameraInfo topic (read when the config rectifies without calib.*, and for the '
      'focal length while focal_px is 0)'),
-    ('imu_topic', 'imu', 'the sensor_msgs/Imu topic (used with use_imu:=true)'),
+    ('imu_topic', 'event_camera/imu',
+     "the sensor_msgs/Imu topic (used with use_imu:=true; libcaer_driver's, as events_topic; "
+     "bag:= remaps a converted bag's /imu to it)"),
     ('use_imu', 'false', 'fuse the gyro (sets imu.enabled of the resonator and the packetizer)'),
     ('focal_px', '0.0',
      'focal length in frame pixels, fx / the downsample factor the packetizer logs (about '

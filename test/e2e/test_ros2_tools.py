@@ -177,6 +177,8 @@ def test_ros2_launch_starts_both_nodes_and_param_set_takes_effect(tmp_path: Path
         # the resonator reads the packetizer's frames; the packetizer the camera topic
         wait_for('the frames link', lambda: counts('/packetizer_node/frames') == (1, 1))
         wait_for('the events subscription', lambda: counts('/event_camera/events')[1] == 1)
+        # the gyro: libcaer_driver's topic by default (focal_px given: no camera_info wanted)
+        wait_for('the imu subscription', lambda: counts('/event_camera/imu')[1] == 1)
         # a runtime change is validated, applied (the resonator is rebuilt) and reported
         out = param_set('/resonator_node', 'cleanup.gamma', '0.5')
         assert 'Set parameter successful' in out, out
@@ -213,6 +215,9 @@ def test_ros2_launch_under_a_namespace_keeps_remaps_and_parameters(tmp_path: Pat
                  lambda: counts('/cam0/packetizer_node/frames') == (1, 1))
         wait_for('the namespaced events subscription',
                  lambda: counts('/cam0/event_camera/events')[1] == 1)
+        # the camera's CameraInfo: the packetizer's rectification, the resonator's focal length
+        wait_for('the namespaced camera_info subscriptions',
+                 lambda: counts('/cam0/event_camera/camera_info')[1] == 2)
         wait_for('the namespaced pose topic', lambda: '/cam0/resonator_node/pose' in topics())
         assert '/packetizer_node/frames' not in topics()
         assert proc.poll() is None, log.read_text()
