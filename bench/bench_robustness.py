@@ -47,7 +47,8 @@ that params file instead of ``config/<kind>.yaml`` (``config/live.yaml`` on the 
 family: a camera without calibration, so no rectification and no sphere correction).
 ``--sensor WIDTH`` renders every draw on a sensor that many pixels wide with the same field of
 view (:func:`hrn_vo_ros.core.sim.family.on_sensor`; with a config whose packetizer downsample
-is 0, e.g. ``--sensor 640 --config config/live.yaml``: the family on a 640x480 camera).
+is 0, e.g. ``--sensor 640 --config config/live.yaml``: the family on a 640x480 camera;
+``--sensor 640x360``: its middle rows on a 16:9 sensor, frames of 96x54).
 
 Examples::
 
@@ -152,15 +153,16 @@ P_OVERRIDES: dict[str, Any] = {}
 S_OVERRIDES: dict[str, Any] = {}
 #: A config file for every kind instead of ``config/<kind>.yaml`` (``--config``).
 CONFIG: dict[str, Path] = {}
-#: ``{'width': W}``: every draw seen by a sensor W pixels wide (``--sensor``, ``on_sensor``).
+#: ``{'width': W, 'height': H}``: every draw seen by a sensor W pixels wide (H 0: the same
+#: vertical field of view; else H rows, the middle ones; ``--sensor``, ``on_sensor``).
 SENSOR: dict[str, int] = {}
 
 
 def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None,
           s_overrides: dict[str, Any] | None = None, config: Path | None = None,
-          sensor: int | None = None) -> None:
+          sensor: tuple[int, int] | None = None) -> None:
     if sensor is not None:
-        SENSOR['width'] = sensor
+        SENSOR['width'], SENSOR['height'] = sensor
     OVERRIDES.update(overrides)
     P_OVERRIDES.update(p_overrides or {})
     S_OVERRIDES.update(s_overrides or {})
@@ -223,7 +225,8 @@ def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False
             ) -> tuple[Any, Sequence, dict[str, float], np.ndarray, np.ndarray]:
     """The draw, its sequence (events cut to one), motion summary and frames (``imu``: the
     packets of a fused gyro); cached."""
-    wide = f'_w{SENSOR["width"]}' if SENSOR else ''
+    wide = (f'_w{SENSOR["width"]}' + (f'x{SENSOR["height"]}' if SENSOR['height'] else '')
+            if SENSOR else '')
     tag = (''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items())) + _config_tag(kind)
            + ('_imu' if imu else ''))
     path = Path(cache) / f'{kind}_{seed}_{seconds:g}{wide}{tag}.pkl' if cache else None
@@ -232,7 +235,7 @@ def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False
             return tuple(pickle.load(f))
     d = draw(kind, seed)
     if SENSOR:
-        d = on_sensor(d, SENSOR['width'])
+        d = on_sensor(d, SENSOR['width'], SENSOR['height'] or None)
     raw = Path(cache) / f'{kind}_{seed}_{seconds:g}{wide}_events.pkl' if cache else None
     if raw is not None and raw.exists():
         with open(raw, 'rb') as f:
@@ -572,6 +575,15 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
     fig.savefig(path, dpi=110)
 
 
+def _sensor_arg(text: str) -> tuple[int, int]:
+    """``--sensor`` WIDTH or WIDTHxHEIGHT as (width, height or 0)."""
+    w, _, h = text.partition('x')
+    try:
+        return int(w), int(h) if h else 0
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not WIDTH or WIDTHxHEIGHT') from None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; returns 0 (figures are printed, not asserted)."""
     p = argparse.ArgumentParser(description=__doc__,
@@ -601,9 +613,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--config', type=Path, default=None,
                    help='run every kind with this config file instead of config/<kind>.yaml '
                         '(e.g. config/live.yaml on the rotation family)')
-    p.add_argument('--sensor', type=int, default=None, metavar='WIDTH',
+    p.add_argument('--sensor', type=_sensor_arg, default=None, metavar='WIDTH[xHEIGHT]',
                    help='render every draw on a sensor WIDTH pixels wide with the same field '
-                        'of view (640: the rotation family on 640x480); needs a config whose '
+                        'of view (640: the rotation family on 640x480; 640x360: its middle '
+                        'rows, a 16:9 sensor); needs a config whose '
                         'packetizer downsample is 0 (auto) and whose resonator takes the frame '
                         'size (--config config/live.yaml)')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
@@ -656,7 +669,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
           f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs'
           + ('' if args.config is None else f', config {args.config}')
-          + ('' if args.sensor is None else f', sensor {args.sensor} px wide'),
+          + ('' if args.sensor is None else f', sensor {args.sensor[0]} px wide'
+             + (f', {args.sensor[1]} high' if args.sensor[1] else '')),
           flush=True)
     t0 = time.perf_counter()
     rows = []

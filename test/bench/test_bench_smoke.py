@@ -56,14 +56,15 @@ CASES = {
     # its --smoke runs every kind and method (minutes): one kind, the HRN only (the spiking
     # backend and the baseline run in the cases above); 6 s is the shortest the protocol's
     # calibration segment evaluates
-    # (with the denoising filter and the live camera's config on a 320x240 sensor, and then its
+    # (with the denoising filter and the live camera's config on a 16:9 320x180 sensor, then its
     # CSV printed again by --rows; --sset is parsed but sets only the spiking method, not run)
     'robustness': Case('bench_robustness.py', ('--smoke', '--kinds', 'rotation', '--methods',
                                                'hrn', '--jobs', '1', '--pset', 'denoise_ms=2',
                                                '--sset', 'precision=float',
                                                '--config', 'config/live.yaml',
-                                               '--sensor', '320', '--csv', '{work}/r.csv'),
-                       ('1 sequences in', 'config config/live.yaml', 'sensor 320 px wide',
+                                               '--sensor', '320x180', '--csv', '{work}/r.csv'),
+                       ('1 sequences in', 'config config/live.yaml',
+                        'sensor 320 px wide, 180 high',
                         'tracked  time ok',
                         'rotation     hrn',
                         'background noise', ' Hz ', 'unevaluated few',

@@ -268,21 +268,27 @@ def draw(kind: str, seed: int) -> Draw:
                 motion, pauses)
 
 
-def on_sensor(d: Draw, width: int) -> Draw:
-    """The draw seen by a sensor ``width`` pixels wide with the same field of view: the
-    calibration scaled by k = width / its width (height ``round(k H)``, fx, fy times k, the
-    principal point's pixel centres scaled, the same distortion on normalised coordinates);
-    scene, motion, contrast thresholds and noise per pixel unchanged, so the event rate grows
-    about as k². For a 640x480 rotation camera: ``on_sensor(draw('rotation', s), 640)``.
+def on_sensor(d: Draw, width: int, height: int | None = None) -> Draw:
+    """The draw seen by a sensor ``width`` pixels wide with the same horizontal field of view:
+    the calibration scaled by k = width / its width (fx, fy times k, the principal point's
+    pixel centres scaled, the same distortion on normalised coordinates); scene, motion,
+    contrast thresholds and noise per pixel unchanged, so the event rate grows about as k².
+    The height is ``round(k H)`` (the same vertical field of view), or ``height``: rows cut
+    from (or added to) top and bottom alike, the principal point moving by half the difference
+    (a 16:9 sensor such as 1280x720 or 640x360 sees the middle of the 4:3 view). For a 640x480
+    rotation camera: ``on_sensor(draw('rotation', s), 640)``.
 
     Raises:
-        ConfigError: for a width below 16 pixels.
+        ConfigError: for a width or height below 16 pixels.
     """
-    if width < 16:
-        raise ConfigError(f'sensor width {width} must be at least 16 pixels')
+    if width < 16 or (height is not None and height < 16):
+        raise ConfigError(f'sensor {width}x{height or "auto"} must be at least 16 pixels each '
+                          'way')
     c, k = d.calib, width / d.calib.width
-    calib = CameraCalibration(width, round(c.height * k), c.fx * k, c.fy * k,
-                              (c.cx + 0.5) * k - 0.5, (c.cy + 0.5) * k - 0.5, c.dist)
+    full = round(c.height * k)
+    rows = full if height is None else height
+    calib = CameraCalibration(width, rows, c.fx * k, c.fy * k, (c.cx + 0.5) * k - 0.5,
+                              (c.cy + 0.5) * k - 0.5 - (full - rows) / 2, c.dist)
     return replace(d, calib=calib)
 
 

@@ -148,3 +148,16 @@ def test_on_sensor_scales_the_calibration_keeps_the_field_of_view() -> None:
     assert replace(v, calib=c) == d          # nothing else changes
     with pytest.raises(ConfigError, match='at least 16'):
         on_sensor(d, 8)
+    with pytest.raises(ConfigError, match='at least 16'):
+        on_sensor(d, 640, 8)
+
+
+def test_on_sensor_with_a_height_crops_the_middle_rows() -> None:
+    """640x360 (16:9) from 240x180: the 640x480 view without its top and bottom 60 rows, so a
+    ray hits the same pixel column and a row 60 higher."""
+    d = draw('rotation', 10_002)
+    full, crop = on_sensor(d, 640).calib, on_sensor(d, 640, 360).calib
+    assert (crop.width, crop.height) == (640, 360)
+    assert (crop.fx, crop.fy, crop.cx, crop.dist) == (full.fx, full.fy, full.cx, full.dist)
+    assert crop.cy == pytest.approx(full.cy - 60.0)
+    assert on_sensor(d, 640, 480) == on_sensor(d, 640)
