@@ -17,6 +17,8 @@ the latency percentiles next to the targets (no drop, median ≤ 5 ms, p99 ≤ 2
     scripts/run.sh python bench/bench_latency.py --seconds 5 --work /tmp/lat5
     scripts/run.sh python bench/bench_latency.py --smoke --work /tmp/lat1   # only that it runs
     scripts/run.sh python bench/bench_latency.py --dataset SEQ --config config/live.yaml
+    scripts/run.sh python bench/bench_latency.py --dataset SEQ --config config/live.yaml \
+        --rset frames_depth=10                    # a shallow frame queue: bounded latency
 
 ``--config`` gives both nodes another params file (``config/live.yaml``: any sensor size, frames
 of at most 96x72). A frame is completed by the packet holding its last binned event, so the
@@ -233,9 +235,12 @@ def report(p: Plan, o: Outcome, seconds: float) -> bool:
     if not got.any():
         print('no odometry received: no latency figures (node logs in --work/logs)')
         return False
-    runs = np.diff(np.flatnonzero(np.concatenate([[True], got, [True]]))) - 1
+    edges = np.flatnonzero(np.concatenate([[True], got, [True]]))
+    runs = np.diff(edges) - 1
+    at = int(edges[int(np.argmax(runs))])           # its first frame
     print(f'longest run of frames without odometry: {int(runs.max())} '
-          f'({int((runs > 0).sum())} runs)')
+          f'({int((runs > 0).sum())} runs), from frame {at} '
+          f'({(p.t_frames[min(at, n - 1)] - p.t_frames[0]) * 1e-9:.2f} s in)')
     lat_ms = (o.received[got] - o.sent[p.completing[got]]) * 1e3
     med, p99 = float(np.median(lat_ms)), float(np.percentile(lat_ms, 99))
     print(f'end-to-end latency (packet published -> odometry received): median {med:.2f} ms, '
@@ -252,6 +257,18 @@ def report(p: Plan, o: Outcome, seconds: float) -> bool:
     return ok
 
 
+def _value(text: str) -> object:
+    """A ``--rset`` value: bool, int, float, else the text."""
+    if text.lower() in ('true', 'false'):
+        return text.lower() == 'true'
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 def main() -> int:
     """Prepare, measure and report; exit 1 if no odometry came back at all."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -263,6 +280,9 @@ def main() -> int:
     ap.add_argument('--config', type=Path, default=CONFIG,
                     help='params file of both nodes (default config/shapes_rotation.yaml; '
                     'config/live.yaml for a sensor of any size)')
+    ap.add_argument('--rset', action='append', default=[], metavar='KEY=VALUE',
+                    help='a resonator_node parameter (repeatable), e.g. frames_depth=10: a '
+                    'shallow frame queue bounds the latency when the resonator falls behind')
     ap.add_argument('--smoke', action='store_true',
                     help=f'a {SMOKE_SECONDS:g} s sequence: only that it runs')
     args = ap.parse_args()
@@ -270,6 +290,11 @@ def main() -> int:
         args.seconds = min(args.seconds, SMOKE_SECONDS)
     seq, bag = prepare(args.work, args.seconds, args.seed, args.dataset)
     p = plan(seq, bag, args.config)
+    for item in args.rset:
+        key, _, text = item.partition('=')
+        p.resonator[key.strip()] = _value(text.strip())
+    if args.rset:
+        print(f'resonator_node parameters: {" ".join(args.rset)}')
     o = measure(p, args.work / 'logs', args.config)
     seconds = (p.packets[-1][0] - p.packets[0][0]) * 1e-9
     report(p, o, seconds)

@@ -48,10 +48,12 @@ CASES = {
                                            '2.5', '--work', '{work}'),
                      ('Accuracy on simulated 2.5 s sequences', 'within target',
                       'wall time rotation'), timeout=300.0),
-    # (with the live camera's config: any sensor size, the rate cap's frame mapping)
+    # (with the live camera's config: any sensor size, the rate cap's frame mapping; and a
+    # resonator parameter, the frame queue's depth)
     'latency': Case('bench_latency.py', ('--smoke', '--work', '{work}', '--config',
-                                         'config/live.yaml'),
-                    ('frames expected', 'live.yaml', 'end-to-end latency', 'targets (no drop'),
+                                         'config/live.yaml', '--rset', 'frames_depth=10'),
+                    ('frames expected', 'live.yaml', 'frames_depth=10', 'end-to-end latency',
+                     'targets (no drop'),
                     timeout=180.0),
     # its --smoke runs every kind and method (minutes): one kind, the HRN only (the spiking
     # backend and the baseline run in the cases above); 6 s is the shortest the protocol's
