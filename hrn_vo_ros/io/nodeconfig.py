@@ -81,7 +81,11 @@ class ResonatorNodeConfig:
     max_pending_frames: int = param(200, 'Frames held while waiting for IMU samples that cover '
                                     'them; beyond this the oldest is processed anyway',
                                     lo=1, hi=100000, read_only=True)
-    frames_depth: int = param(1000, 'Queue depth of the frame subscription (RELIABLE)',
+    frames_depth: int = param(1000, 'Queue depth of the frame subscription (RELIABLE, keep '
+                              'last): when the resonator falls behind, the oldest waiting frame '
+                              'is dropped (counted: seq_gaps), so the odometry lags by at most '
+                              'about this many frames (live.yaml: 10; replays that must keep '
+                              'every frame: large)',
                               lo=1, hi=100000, read_only=True)
     diagnostics_period_s: float = param(1.0, 'Period of the diagnostics message, seconds',
                                         lo=0.01, hi=3600.0, read_only=True)

@@ -1,6 +1,8 @@
 """``resonator_node``: binary event frames in, odometry out (the HRN as an odometry source).
 
-Subscribes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, RELIABLE) and, with the resonator's
+Subscribes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, RELIABLE, keep last
+``frames_depth``: when it falls behind the oldest waiting frame is dropped, counted from the
+publisher's sequence numbers as ``seq_gaps``, WARN) and, with the resonator's
 ``imu.enabled``, ``~/imu`` (``sensor_msgs/Imu``, best effort depth 1000; frames wait, bounded,
 until a gyro sample at or after their time arrived). With ``focal_px`` 0 it takes the focal
 length from the first ``~/camera_info`` (the camera's ``sensor_msgs/CameraInfo``, latched or
@@ -39,7 +41,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 from tf2_msgs.msg import TFMessage
 
-from hrn_vo_ros.core.clock import RateLimit, Throttle
+from hrn_vo_ros.core.clock import RateLimit, Recent, Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
@@ -87,6 +89,7 @@ class ResonatorNode(Node):
                                                 w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._image_rate, self._throttle = RateLimit(), Throttle()
+        self._dropped = Recent()                          # frames the queue dropped, when
         self._pub_readout = self.create_publisher(JointState, '~/readout', qos(1000))
         self._pub_pose = self.create_publisher(PoseStamped, '~/pose', qos(1000))
         self._pub_odom = self.create_publisher(Odometry, '~/odom', qos(1000))
@@ -168,8 +171,16 @@ class ResonatorNode(Node):
                                self._make_hrn)
         self.get_logger().info(text)
 
-    def _on_frame(self, msg: Image) -> None:
+    def _on_frame(self, msg: Image, info: dict[str, Any]) -> None:
         self.stats.count('frames_in')
+        seq = info.get('publication_sequence_number')
+        missed = self.stats.sequence(int(seq)) if seq else 0     # frames the queue dropped
+        if missed:
+            self._dropped.mark(f'{self.stats.seq_gaps} frames dropped before the resonator: '
+                               'it falls behind the frames (queue frames_depth '
+                               f'{self._opts.config.frames_depth}, oldest dropped first)')
+            self.get_logger().warning(self._dropped.detail, throttle_duration_sec=(
+                self._opts.config.log_throttle_s))
         try:
             t_ns, image = ros_msgs.image_to_frame(msg)
         except HrnVoError as err:
@@ -230,7 +241,9 @@ class ResonatorNode(Node):
         missing = self._focal.missing(self._algo.config,
                                       self.resolve_topic_name('~/camera_info'))
         level, message = worst(*self._live.states(window_s),
-                               *([('warn', missing)] if missing else []))
+                               *([('warn', missing)] if missing else []),
+                               *([('warn', self._dropped.detail)]
+                                 if self._dropped.within(window_s) else []))
         publish_diagnostics(self, self._diag, self.stats, extra, level=level,
                             message='running' if level == 'ok' else message, window_s=window_s)
 

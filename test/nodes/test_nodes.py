@@ -367,3 +367,43 @@ def test_rate_capped_packetizer_keeps_an_even_share_and_counts_the_rest(
         assert lone.wait(lambda: any(d.get('events_capped') == str(offline.capped)
                                      and d.get('rate_cap_share') == '0.050'
                                      for d in lone.diags))
+
+
+def test_a_shallow_frame_queue_drops_the_oldest_and_counts_them() -> None:
+    """frames_depth 2 and a resonator that does not take frames for a while (here: not spun):
+    only the newest two of 30 are processed, the 28 before them are counted as dropped (the
+    publisher's sequence numbers) and the diagnostics WARN that the resonator falls behind."""
+    rclpy.init()
+    node = ResonatorNode(parameter_overrides=[
+        Parameter('frames_depth', value=2), Parameter('diagnostics_period_s', value=0.1),
+        Parameter('map_image_rate_hz', value=0.0)])
+    probe = Node('queue_probe')
+    odoms: list[Odometry] = []
+    diags: list[DiagnosticArray] = []
+    pub = probe.create_publisher(Image, '/resonator_node/frames', qos(100))
+    probe.create_subscription(Odometry, '/resonator_node/odom', odoms.append, qos(100))
+    probe.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 100)
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    ex.add_node(probe)
+    try:
+        assert spin_until(ex, lambda: pub.get_subscription_count() > 0, 10.0)
+        frame = np.eye(72, 96, dtype=np.uint8)
+        pub.publish(ros_msgs.frame_to_image(frame, 1_000_000_000, 'cam'))
+        assert spin_until(ex, lambda: len(odoms) == 1, 10.0)
+        for k in range(1, 31):               # published while the node takes nothing
+            pub.publish(ros_msgs.frame_to_image(frame, 1_000_000_000 + k * 1_000_000, 'cam'))
+        time.sleep(0.5)                      # all delivered into the 2-deep queue
+        assert spin_until(ex, lambda: len(odoms) == 3, 10.0)
+        assert [ros_msgs.stamp_to_ns(m.header.stamp) for m in odoms[1:]] == [
+            1_029_000_000, 1_030_000_000]    # the newest two
+        def last() -> dict[str, str]:
+            return ros_msgs.diagnostic_values(diags[-1]) if diags else {}
+        assert spin_until(ex, lambda: last().get('frames_in') == '3', 10.0)
+        status = diags[-1].status[0]
+        assert last()['seq_gaps'] == '28' and status.level == b'\x01'
+        assert status.message.startswith('28 frames dropped before the resonator')
+    finally:
+        node.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown()
