@@ -177,6 +177,8 @@ def run(args: argparse.Namespace) -> int:
                              packetizer=pk_over, resonator=rs_over)
     for w in resolved.warnings:
         echo(f'warning: {w}')
+    for note in resolved.notes:
+        echo(f'note: {note}')
     if args.config is None:
         echo('note: no --config: the defaults, the network of config/live.yaml (no '
              'rectification); config/<kind>.yaml hold the settings of each dataset kind')

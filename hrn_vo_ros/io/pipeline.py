@@ -395,10 +395,12 @@ def run_bag(info: BagInfo, pipeline: OdometryPipeline[E], *,
 
 @dataclass(frozen=True, slots=True)
 class InputConfigs:
-    """What :func:`input_configs` resolves: the stage configs and the warnings to print."""
+    """What :func:`input_configs` resolves: the stage configs, the warnings and notes to
+    print."""
 
     configs: DatasetConfigs
     warnings: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
 
 def _file_sensor_size(config: Path | None) -> tuple[int, int] | None:
@@ -506,8 +508,12 @@ def input_configs(config: Path | None, source: Path, *, bag: BagInfo | None = No
     rs = dict(resonator or {})
     pcfg, rcfg = load_configs(config, packetizer=pk, resonator=rs)
     rs.update(width=pcfg.width, height=pcfg.height)
+    notes: list[str] = []
     if bag is not None and rcfg.focal_px <= 0.0 and bag.camera is not None:
         rs['focal_px'] = camera_focal_px(bag.camera, (pcfg.width, pcfg.height))   # as the node
+        fx, (sw, sh) = bag.camera
+        notes.append(f'focal length {rs["focal_px"]:.4g} frame px from the bag\'s CameraInfo '
+                     f'(fx {fx:g} on {sw}x{sh}, frames {pcfg.width}x{pcfg.height})')
     elif needs_focal(rcfg):
         if bag is not None:
             raise ConfigError('the IMU prediction and the sphere correction need the focal '
@@ -519,4 +525,4 @@ def input_configs(config: Path | None, source: Path, *, bag: BagInfo | None = No
     problem = sphere_rectify_problem(pcfg.rectify, rcfg)
     if problem is not None:
         raise ConfigError(problem)
-    return InputConfigs(DatasetConfigs(pcfg, rcfg, pk, rs), tuple(warnings))
+    return InputConfigs(DatasetConfigs(pcfg, rcfg, pk, rs), tuple(warnings), tuple(notes))

@@ -123,6 +123,8 @@ def test_bag_with_a_camera_info_gives_the_focal_length(tmp_path: Path, rot_seq: 
     res = hrn_vo('run', str(bag), *LIVE, '--imu-topic', '/imu', '--out', str(est),
                  '--tum', str(tum), '--quiet')
     assert res.returncode == 0, res.stderr
+    assert (f"note: focal length {fx / 2.5:.4g} frame px from the bag's CameraInfo (fx {fx:g} "
+            'on 240x180, frames 96x72)') in res.stdout
     ef = read_estimate_file(est)
     assert len(ef.series) > 100
     e = np.loadtxt(tum)
