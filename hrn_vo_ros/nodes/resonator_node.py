@@ -158,6 +158,8 @@ class ResonatorNode(Node):
     def _on_camera_info(self, msg: CameraInfo) -> None:
         """The first usable camera_info gives the focal length while ``focal_px`` is unset;
         a resonator that needs it (gyro, sphere correction) is rebuilt with it."""
+        if self._focal.camera is not None:      # one taken before the subscription closed
+            return
         try:
             camera = ros_msgs.camera_info_focal(msg)
         except HrnVoError as err:
