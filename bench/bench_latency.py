@@ -231,7 +231,8 @@ def report(p: Plan, o: Outcome, seconds: float) -> bool:
     print(f'frames expected {n}, made by the packetizer {pk.get("frames_out", "?")}, odometry '
           f'out {int(got.sum())}, dropped {n - int(got.sum())} (unmatched stamps {o.extra}); '
           f'bad messages packetizer {pk.get("bad_total", "?")}, '
-          f'resonator {rs.get("bad_total", "?")}')
+          f'resonator {rs.get("bad_total", "?")}; the resonator took {rs.get("frames_in", "?")} '
+          f'frames, its queue dropped {rs.get("seq_gaps", "?")}')
     if not got.any():
         print('no odometry received: no latency figures (node logs in --work/logs)')
         return False
