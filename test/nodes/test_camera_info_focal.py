@@ -36,7 +36,7 @@ def test_focal_length_from_camera_info_turns_the_gyro_on_and_scales_the_odometry
     node = ResonatorNode(parameter_overrides=[
         Parameter('diagnostics_period_s', value=0.1), Parameter('imu.enabled', value=True),
         Parameter('frame_size', value='frames'), Parameter('imu_timeout_s', value=60.0),
-        Parameter('map_image_rate_hz', value=0.0),
+        Parameter('map_image_rate_hz', value=0.0), Parameter('diagnostics_window_s', value=0.3),
         Parameter('odometry.child_frame', value='camera')])        # the optical frame
     probe = Node('focal_probe')
     poses: list[PoseStamped] = []
@@ -81,10 +81,14 @@ def test_focal_length_from_camera_info_turns_the_gyro_on_and_scales_the_odometry
         assert '/resonator_node/camera_info' in status.message
         assert last()['focal_px'] == '79.6' and 'bad_tracking' not in last()
 
+        info.publish(CameraInfo(width=346, height=260))      # uncalibrated: refused, counted
+        assert wait(lambda: last().get('bad_camera_info') == '1')
+        assert last()['focal_source'] == 'odometry.focal_length_px'
         # a DAVIS346 binned into 96x72 (auto factor 260 / 72; the width alone says 346 / 96)
         info.publish(CameraInfo(width=346, height=260, k=[260.0, 0, 173, 0, 260.0, 130, 0, 0, 1]))
         assert wait(lambda: last().get('focal_source') == 'camera_info')
-        assert last()['focal_px'] == '72' and diags[-1].status[0].level == b'\x00'
+        assert last()['focal_px'] == '72'
+        assert wait(lambda: diags[-1].status[0].level == b'\x00')   # the reject's window over
         for i in range(4, 16):
             send(i)
         ex.spin_once(timeout_sec=0.3)
