@@ -393,7 +393,7 @@ def test_a_shallow_frame_queue_drops_the_oldest_and_counts_them() -> None:
         assert spin_until(ex, lambda: len(odoms) == 1, 10.0)
         for k in range(1, 31):               # published while the node takes nothing
             pub.publish(ros_msgs.frame_to_image(frame, 1_000_000_000 + k * 1_000_000, 'cam'))
-        time.sleep(0.5)                      # all delivered into the 2-deep queue
+        time.sleep(1.0)                      # all delivered into the 2-deep queue
         assert spin_until(ex, lambda: len(odoms) == 3, 10.0)
         assert [ros_msgs.stamp_to_ns(m.header.stamp) for m in odoms[1:]] == [
             1_029_000_000, 1_030_000_000]    # the newest two
