@@ -6,9 +6,11 @@ an EventPacket topic in any supported encoding (mono, evt3, libcaer_cmp, libcaer
 ``--events-topic``, default the only one) and optionally an Imu topic (``--imu-topic``; its
 gyro then drives the prediction step). For a bag the sensor size comes from the messages and
 the estimate times are in the clock of the EventPacket header stamps (``io.pipeline``
-explains the mapping); a bag has no calib.txt, so rectification comes from the config or
-``--set`` (e.g. ``--set packetizer.rectify=none``), the focal length from ``focal_px``, else from
-the bag's first calibrated CameraInfo (fx / D, as the resonator node). ``--sensor-size WxH``
+explains the mapping); a bag has no calib.txt, so the rectification's intrinsics come from the
+config's ``calib.*``, else from the bag's first calibrated CameraInfo (plumb-bob), as the
+packetizer node takes them, and the focal length from ``focal_px``, else from that CameraInfo
+(fx / D, as the resonator node); ``--set packetizer.rectify=none`` runs unrectified.
+``--sensor-size WxH``
 overrides the sensor size of the input (with a warning when they differ); a dataset without
 meta.json takes it from ``--sensor-size`` or the config's packetizer section.
 

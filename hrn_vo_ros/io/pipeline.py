@@ -40,6 +40,7 @@ from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.frames import EventFrame, Packetizer
 from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration
+from hrn_vo_ros.core.events.sequence import calibration_from_camera_info, CameraCalibration
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
 from hrn_vo_ros.core.live import camera_focal, camera_focal_px, CameraFocal
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
@@ -154,6 +155,8 @@ class BagInfo:
         imu_topics: The ``sensor_msgs/msg/Imu`` topics of the bag.
         camera: fx and sensor size of the first usable ``sensor_msgs/msg/CameraInfo`` (the
             topic beside the events topic, else the only one), or None.
+        calibration: That CameraInfo's intrinsics and distortion when they are plumb-bob (for
+            rectification), or None.
     """
 
     path: Path
@@ -163,6 +166,7 @@ class BagInfo:
     messages: int
     imu_topics: tuple[str, ...]
     camera: CameraFocal | None = None
+    calibration: CameraCalibration | None = None
 
 
 def inspect_bag(path: Path, events_topic: str | None = None) -> BagInfo:
@@ -187,28 +191,35 @@ def inspect_bag(path: Path, events_topic: str | None = None) -> BagInfo:
             raise BagError(f'{path}: no EventPacket topic {events_topic}; EventPacket topics: '
                            f'{", ".join(topics) or "none"}')
         count = sum(c.msgcount for c in conns if c.topic == events_topic)
-        camera = _bag_camera(reader, ts, events_topic)
+        camera, calibration = _bag_camera(reader, ts, events_topic)
         for m in bags.iter_messages(reader, [events_topic]):
             msg: Any = ts.deserialize_cdr(m.raw, bags.EVENT_PACKET)
             return BagInfo(Path(path), events_topic, str(msg.encoding),
-                           (int(msg.width), int(msg.height)), count, imu, camera)
+                           (int(msg.width), int(msg.height)), count, imu, camera, calibration)
     raise BagError(f'{path}: {events_topic} has no messages')
 
 
-def _bag_camera(reader: Any, ts: Any, events_topic: str) -> CameraFocal | None:
+def _bag_camera(reader: Any, ts: Any, events_topic: str
+                ) -> tuple[CameraFocal | None, CameraCalibration | None]:
     """fx and sensor size of the first usable CameraInfo of the topic beside
     ``events_topic`` (``/event_camera/camera_info`` for ``/event_camera/events``), else of
-    the only CameraInfo topic; None without one (or when none is calibrated)."""
+    the only CameraInfo topic, and its plumb-bob calibration; None for what none gives."""
     topics = sorted({c.topic for c in reader.connections if c.msgtype == CAMERA_INFO_TYPE})
     beside = events_topic.rpartition('/')[0] + '/camera_info'
     topic = beside if beside in topics else topics[0] if len(topics) == 1 else None
     if topic is None:
-        return None
+        return None, None
     for m in bags.iter_messages(reader, [topic]):
         msg: Any = ts.deserialize_cdr(m.raw, CAMERA_INFO_TYPE)
         with contextlib.suppress(DecodeError):
-            return camera_focal(float(msg.k[0]), int(msg.width), int(msg.height))
-    return None
+            camera = camera_focal(float(msg.k[0]), int(msg.width), int(msg.height))
+            calibration = None
+            with contextlib.suppress(DecodeError):
+                calibration = calibration_from_camera_info(
+                    int(msg.width), int(msg.height), list(msg.k), list(msg.d),
+                    str(msg.distortion_model))
+            return camera, calibration
+    return None, None
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -337,17 +348,18 @@ class HeaderClock:
 def bag_pipeline(pcfg: PacketizerConfig, make_estimator: Callable[[], E], *,
                  gyro: GyroIntegrator | None = None,
                  with_z: bool = False) -> OdometryPipeline[E]:
-    """The pipeline for a bag: a packetizer of ``pcfg`` (which must not rectify: a bag carries
-    no calibration file), the gyro of its Imu topic (:func:`read_bag_gyro`) or None, and the
-    estimator ``make_estimator()``.
+    """The pipeline for a bag: a packetizer of ``pcfg`` (rectifying only with a calibration:
+    ``calib.*`` or the bag's CameraInfo, :func:`input_configs`), the gyro of its Imu topic
+    (:func:`read_bag_gyro`) or None, and the estimator ``make_estimator()``.
 
     Raises:
         DatasetError: if ``pcfg.rectify`` is not ``none`` and it has no calibration.
     """
     if pcfg.rectify != 'none' and not (pcfg.calib.fx > 0 and pcfg.calib.fy > 0):
-        raise DatasetError(f'the packetizer rectifies ({pcfg.rectify}) but a bag has no '
-                           'calib.txt: pass --set packetizer.rectify=none or the intrinsics '
-                           '(--set packetizer.calib.fx=..., fy, cx, cy)')
+        raise DatasetError(f'the packetizer rectifies ({pcfg.rectify}) but the bag has no '
+                           'calib.txt nor a plumb-bob CameraInfo: pass --set '
+                           'packetizer.rectify=none or the intrinsics (--set '
+                           'packetizer.calib.fx=..., fy, cx, cy)')
     return OdometryPipeline(make_estimator(), packetizer=Packetizer(pcfg), gyro=gyro,
                             with_z=with_z)
 
@@ -525,4 +537,8 @@ def input_configs(config: Path | None, source: Path, *, bag: BagInfo | None = No
     problem = sphere_rectify_problem(pcfg.rectify, rcfg)
     if problem is not None:
         raise ConfigError(problem)
+    if bag is not None and bag.calibration is not None and not pcfg.calib.known \
+            and pcfg.rectify != 'none':          # as the packetizer node takes a CameraInfo
+        pcfg = with_calibration(pcfg, bag.calibration)
+        notes.append(f"rectification ({pcfg.rectify}) with the bag's CameraInfo calibration")
     return InputConfigs(DatasetConfigs(pcfg, rcfg, pk, rs), tuple(warnings), tuple(notes))

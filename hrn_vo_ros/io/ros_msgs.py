@@ -38,7 +38,7 @@ from sensor_msgs.msg import Image, JointState
 from tf2_msgs.msg import TFMessage
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.sequence import CameraCalibration
+from hrn_vo_ros.core.events.sequence import calibration_from_camera_info, CameraCalibration
 from hrn_vo_ros.core.live import camera_focal, CameraFocal
 from hrn_vo_ros.core.odometry.odometry import OdomPose, quat_from_matrix, Twist
 from hrn_vo_ros.core.odometry.publish import child_frame_id, StaticFrame
@@ -126,37 +126,18 @@ def frame_to_image(image: NDArray[np.uint8], t_ns: int, frame_id: str) -> Image:
     return msg
 
 
-_PLUMB_BOB = ('plumb_bob', 'radtan', 'rational_polynomial')
 
 
 def camera_info_to_calibration(msg: Any) -> CameraCalibration:
-    """The calibration in a ``sensor_msgs/CameraInfo``.
-
-    ``plumb_bob`` (``k1 k2 p1 p2 k3``) is read as is; ``rational_polynomial`` only when its extra
-    coefficients are 0 (then it is plumb-bob); an empty model with no coefficients is a pinhole.
+    """The calibration in a ``sensor_msgs/CameraInfo`` (of rclpy or a bag reader;
+    ``core.events.sequence.calibration_from_camera_info``).
 
     Raises:
         DecodeError: for an uncalibrated camera (zero focal length), an unsupported model or a
             bad size.
     """
-    k = [float(v) for v in msg.k]
-    d = [float(v) for v in msg.d]
-    model = str(msg.distortion_model)
-    w, h = int(msg.width), int(msg.height)
-    if w <= 0 or h <= 0:
-        raise DecodeError(f'camera_info size {w}x{h} is not a sensor size')
-    if not (k[0] > 0 and k[4] > 0):
-        raise DecodeError('camera_info has no focal length (k is zero: the camera is not '
-                          'calibrated); calibrate it or set the calib.* parameters')
-    if model not in _PLUMB_BOB and not (model == '' and not any(d)):
-        raise DecodeError(f'camera_info distortion model {model!r} is not supported; use '
-                          'plumb_bob (k1 k2 p1 p2 k3)')
-    if any(d[5:]):
-        raise DecodeError(f'camera_info has {len(d)} distortion coefficients, the ones past k3 '
-                          'non-zero; only plumb_bob (5) is supported')
-    d5 = (d + [0.0] * 5)[:5]
-    return CameraCalibration(width=w, height=h, fx=k[0], fy=k[4], cx=k[2], cy=k[5],
-                             dist=(d5[0], d5[1], d5[2], d5[3], d5[4]))
+    return calibration_from_camera_info(int(msg.width), int(msg.height), list(msg.k),
+                                        list(msg.d), str(msg.distortion_model))
 
 
 def camera_info_focal(msg: Any) -> CameraFocal:

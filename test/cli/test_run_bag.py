@@ -140,3 +140,27 @@ def test_bag_with_a_camera_info_gives_the_focal_length(tmp_path: Path, rot_seq: 
         res = hrn_vo('run', str(BAGS / 'test_events_2'), *LIVE, '--set', 'imu.enabled=true',
                      '--out', str(tmp_path / 'e2.csv'), '--quiet')
         assert res.returncode != 0 and 'nor a calibrated CameraInfo' in res.stderr
+
+
+def test_bag_with_a_camera_info_rectifies_as_the_dataset_does(tmp_path: Path,
+                                                              rot_seq: Path) -> None:
+    """shapes_rotation.yaml (equidistant rectification, sphere correction) on a converted bag:
+    the CameraInfo gives the intrinsics and the focal length that calib.txt gives the dataset
+    run, so the estimates are the same values (before: refused, no calib.txt)."""
+    bag = tmp_path / 'bag'
+    assert hrn_vo('convert', str(rot_seq), str(bag)).returncode == 0
+    cfg = ['--config', str(ROOT / 'config' / 'shapes_rotation.yaml'), '--quiet']
+    res = hrn_vo('run', str(bag), *cfg, '--out', str(tmp_path / 'bag.csv'))
+    assert res.returncode == 0, res.stderr
+    assert "rectification (equidistant) with the bag's CameraInfo calibration" in res.stdout
+    assert hrn_vo('run', str(rot_seq), *cfg, '--out', str(tmp_path / 'ds.csv')).returncode == 0
+    a = read_estimate_file(tmp_path / 'bag.csv').series
+    b = read_estimate_file(tmp_path / 'ds.csv').series
+    assert len(a.h) == len(b.h) > 100
+    for x, y in ((a.h, b.h), (a.v, b.v), (a.r, b.r)):
+        np.testing.assert_array_equal(x, y)
+    # rectified frames differ from plain ones: the calibration was used, not skipped
+    plain = tmp_path / 'plain.csv'
+    assert hrn_vo('run', str(bag), *cfg, '--set', 'packetizer.rectify=none', '--set',
+                  'sphere.enabled=false', '--out', str(plain)).returncode == 0
+    assert not np.array_equal(read_estimate_file(plain).series.h[:len(a.h)], a.h)

@@ -5,13 +5,14 @@ All times are int64 nanoseconds on the sensor clock (see :mod:`hrn_vo_ros.core.e
 
 from __future__ import annotations
 
+from collections.abc import Sequence as Seq
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.errors import ConfigError, DatasetError
+from hrn_vo_ros.errors import ConfigError, DatasetError, DecodeError
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,6 +35,39 @@ class CameraCalibration:
             raise DatasetError(f'sensor size {self.width}x{self.height} must be positive')
         if not (self.fx > 0 and self.fy > 0):
             raise DatasetError(f'focal lengths fx={self.fx}, fy={self.fy} must be positive')
+
+
+#: CameraInfo distortion models read as plumb-bob (``k1 k2 p1 p2 k3``).
+PLUMB_BOB_MODELS = ('plumb_bob', 'radtan', 'rational_polynomial')
+
+
+def calibration_from_camera_info(width: int, height: int, k: Seq[float], d: Seq[float],
+                                 model: str) -> CameraCalibration:
+    """The calibration a ``sensor_msgs/CameraInfo`` holds (its width, height, K, D and
+    distortion model).
+
+    ``plumb_bob`` (``k1 k2 p1 p2 k3``) is read as is; ``rational_polynomial`` only when its extra
+    coefficients are 0 (then it is plumb-bob); an empty model with no coefficients is a pinhole.
+
+    Raises:
+        DecodeError: for an uncalibrated camera (zero focal length), an unsupported model or a
+            bad size.
+    """
+    k, d = [float(v) for v in k], [float(v) for v in d]
+    if width <= 0 or height <= 0:
+        raise DecodeError(f'camera_info size {width}x{height} is not a sensor size')
+    if not (k[0] > 0 and k[4] > 0):
+        raise DecodeError('camera_info has no focal length (k is zero: the camera is not '
+                          'calibrated); calibrate it or set the calib.* parameters')
+    if model not in PLUMB_BOB_MODELS and not (model == '' and not any(d)):
+        raise DecodeError(f'camera_info distortion model {model!r} is not supported; use '
+                          'plumb_bob (k1 k2 p1 p2 k3)')
+    if any(d[5:]):
+        raise DecodeError(f'camera_info has {len(d)} distortion coefficients, the ones past k3 '
+                          'non-zero; only plumb_bob (5) is supported')
+    d5 = (d + [0.0] * 5)[:5]
+    return CameraCalibration(width=width, height=height, fx=k[0], fy=k[4], cx=k[2], cy=k[5],
+                             dist=(d5[0], d5[1], d5[2], d5[3], d5[4]))
 
 
 @dataclass(frozen=True, slots=True, eq=False)
