@@ -48,6 +48,7 @@ import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 from hrn_vo_ros.cli import graph as G  # noqa: E402,N812
+from hrn_vo_ros.cli.run import parse_overrides  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events, rate_cap  # noqa: E402
 from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.io import bags  # noqa: E402
@@ -258,18 +259,6 @@ def report(p: Plan, o: Outcome, seconds: float) -> bool:
     return ok
 
 
-def _value(text: str) -> object:
-    """A ``--rset`` value: bool, int, float, else the text."""
-    if text.lower() in ('true', 'false'):
-        return text.lower() == 'true'
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
-
-
 def main() -> int:
     """Prepare, measure and report; exit 1 if no odometry came back at all."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -291,9 +280,10 @@ def main() -> int:
         args.seconds = min(args.seconds, SMOKE_SECONDS)
     seq, bag = prepare(args.work, args.seconds, args.seed, args.dataset)
     p = plan(seq, bag, args.config)
-    for item in args.rset:
-        key, _, text = item.partition('=')
-        p.resonator[key.strip()] = _value(text.strip())
+    packetizer, resonator = parse_overrides(args.rset)     # values parsed as hrn-vo run --set
+    if packetizer:          # the expected frames are planned with the packetizer config above
+        ap.error(f'--rset sets resonator_node parameters, not {", ".join(packetizer)}')
+    p.resonator.update(resonator)
     if args.rset:
         print(f'resonator_node parameters: {" ".join(args.rset)}')
     o = measure(p, args.work / 'logs', args.config)

@@ -87,6 +87,7 @@ sys.path.insert(0, str(ROOT / 'bench'))
 
 from bench_accuracy import CASES  # noqa: E402
 
+from hrn_vo_ros.cli.run import parse_size  # noqa: E402
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
@@ -576,10 +577,12 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
 
 
 def _sensor_arg(text: str) -> tuple[int, int]:
-    """``--sensor`` WIDTH or WIDTHxHEIGHT as (width, height or 0)."""
-    w, _, h = text.partition('x')
+    """``--sensor`` WIDTH or WIDTHxHEIGHT (``hrn-vo run --sensor-size``'s parser) as (width,
+    height or 0)."""
+    if 'x' in text.lower():
+        return parse_size(text)
     try:
-        return int(w), int(h) if h else 0
+        return int(text), 0
     except ValueError:
         raise argparse.ArgumentTypeError(f'{text!r} is not WIDTH or WIDTHxHEIGHT') from None
 
