@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
-import math
 import time
 
 import numpy as np
@@ -32,6 +31,7 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.clock import Recent, StampChecker, Verdict
 from hrn_vo_ros.core.events.packet_config import VALIDATED_FRAME
+from hrn_vo_ros.core.events.sequence import CameraFocal
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, without_unset_focal
@@ -47,7 +47,7 @@ from hrn_vo_ros.core.odometry.publish import (
     StaticFrame,
 )
 from hrn_vo_ros.core.pipeline import OdometryPipeline
-from hrn_vo_ros.errors import DecodeError, HrnVoError
+from hrn_vo_ros.errors import HrnVoError
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,26 +92,6 @@ def make_resonator(cfg: ResonatorConfig, seed: int, backend: BackendConfig
     """
     cfg, why = without_unset_focal(cfg)
     return make_backend(cfg, rng=np.random.default_rng(seed), backend=backend), why
-
-
-#: A camera's focal length fx (sensor pixels) and its sensor size (width, height), from its
-#: camera_info: what :func:`camera_focal_px` scales to frame pixels.
-CameraFocal = tuple[float, tuple[int, int]]
-
-
-def camera_focal(fx: float, width: int, height: int) -> CameraFocal:
-    """A camera's focal length (sensor pixels) and sensor size, checked: a CameraInfo's
-    ``k[0]``, ``width`` and ``height``.
-
-    Raises:
-        DecodeError: for an uncalibrated camera (fx not a positive number) or a bad size.
-    """
-    if width <= 0 or height <= 0:
-        raise DecodeError(f'camera_info size {width}x{height} is not a sensor size')
-    if not (math.isfinite(fx) and fx > 0.0):
-        raise DecodeError(f'camera_info has no focal length (k[0] = {fx:g}: the camera is not '
-                          'calibrated); calibrate it or set focal_px')
-    return fx, (width, height)
 
 
 def camera_focal_px(camera: CameraFocal, frame: tuple[int, int]) -> float:
@@ -204,6 +184,12 @@ class FocalLength:
                          f'camera_info (fx {fx:g} on {sw}x{sh}, frames {frame[0]}x{frame[1]}), '
                          'for the odometry too' + (
                              '; the resonator restarts with it' if rebuild else ''))
+
+    def diagnostic_values(self, focal_px: float, frame: tuple[int, int],
+                          odo: OdometryConfig) -> list[tuple[str, object]]:
+        """``focal_px`` (the one in use; without one the odometry's) and ``focal_source``."""
+        focal, source = self.value(focal_px, frame)
+        return [('focal_px', f'{focal or odo.focal_length_px:.6g}'), ('focal_source', source)]
 
     def missing(self, cfg: ResonatorConfig, topic: str) -> str | None:
         """Why the gyro or sphere correction of ``cfg`` is off for want of a focal length, and

@@ -40,9 +40,14 @@ from hrn_vo_ros.core.evaluation.series import EstimateSeries
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.frames import EventFrame, Packetizer
 from hrn_vo_ros.core.events.packet_config import PacketizerConfig, with_calibration
-from hrn_vo_ros.core.events.sequence import calibration_from_camera_info, CameraCalibration
+from hrn_vo_ros.core.events.sequence import (
+    calibration_from_camera_info,
+    camera_focal,
+    CameraCalibration,
+    CameraFocal,
+)
 from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig, sphere_rectify_problem
-from hrn_vo_ros.core.live import camera_focal, camera_focal_px, CameraFocal
+from hrn_vo_ros.core.live import camera_focal_px
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator
 from hrn_vo_ros.core.pipeline import E, OdometryPipeline
 from hrn_vo_ros.errors import BagError, ConfigError, DatasetError, DecodeError

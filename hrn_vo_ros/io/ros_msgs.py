@@ -38,8 +38,12 @@ from sensor_msgs.msg import Image, JointState
 from tf2_msgs.msg import TFMessage
 
 from hrn_vo_ros.core.events.arrays import EventArray
-from hrn_vo_ros.core.events.sequence import calibration_from_camera_info, CameraCalibration
-from hrn_vo_ros.core.live import camera_focal, CameraFocal
+from hrn_vo_ros.core.events.sequence import (
+    calibration_from_camera_info,
+    camera_focal,
+    CameraCalibration,
+    CameraFocal,
+)
 from hrn_vo_ros.core.odometry.odometry import OdomPose, quat_from_matrix, Twist
 from hrn_vo_ros.core.odometry.publish import child_frame_id, StaticFrame
 from hrn_vo_ros.errors import DecodeError

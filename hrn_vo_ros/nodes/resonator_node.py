@@ -57,14 +57,7 @@ from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
-from hrn_vo_ros.nodes.common import (
-    CameraInfoInput,
-    publish_diagnostics,
-    qos,
-    Rejects,
-    run,
-    worst,
-)
+from hrn_vo_ros.nodes.common import CameraInfoInput, publish_diagnostics, qos, Rejects, run, worst
 from hrn_vo_ros.nodes.params import declare_config
 from hrn_vo_ros.nodes.stats import NodeStats
 
@@ -232,13 +225,12 @@ class ResonatorNode(Node):
         self._emit(self._live.tick(self._settings()))
         if self._focal.camera is None and self._camera_info is not None:
             self._camera_info.recheck()
-        focal, source = self._focal.value(self._algo.config.focal_px, self._live.size)
         extra = self._live.diagnostic_values(
             f'{self.stats.rate("estimates_out"):.1f}', min(
                 p.get_subscription_count() for p in self._outputs[:3]),
-            self._pub_odom.get_subscription_count()) + [
-                ('focal_px', f'{focal or self._opts.config.odometry.focal_length_px:.6g}'),
-                ('focal_source', source)] + self._extra_diagnostics()
+            self._pub_odom.get_subscription_count()) + self._focal.diagnostic_values(
+                self._algo.config.focal_px, self._live.size, self._opts.config.odometry
+            ) + self._extra_diagnostics()
         window_s = self._opts.config.diagnostics_window_s
         missing = self._focal.missing(self._algo.config,
                                       self.resolve_topic_name('~/camera_info'))

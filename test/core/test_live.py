@@ -272,6 +272,8 @@ def test_focal_length_source_order_and_what_it_changes() -> None:
     odo = OdometryConfig(focal_length_px=79.6)
     f = FocalLength()
     assert f.value(0.0, (96, 72)) == (0.0, 'odometry.focal_length_px')
+    assert f.diagnostic_values(0.0, (96, 72), odo) == [
+        ('focal_px', '79.6'), ('focal_source', 'odometry.focal_length_px')]
     assert f.odometry(odo, 0.0, (96, 72)) is odo and f.config(rot, (96, 72)) is rot
     warn = f.missing(rot, '/cam/camera_info')
     assert warn is not None and 'imu.enabled needs focal_px' in warn
@@ -281,6 +283,8 @@ def test_focal_length_source_order_and_what_it_changes() -> None:
     assert rebuild and text.startswith('focal length 75 frame px from camera_info (fx 500 on '
                                        '640x480, frames 96x72)')
     assert f.value(0.0, (96, 72)) == (75.0, 'camera_info') and f.missing(rot, '/x') is None
+    assert f.diagnostic_values(0.0, (96, 72), odo) == [('focal_px', '75'),
+                                                       ('focal_source', 'camera_info')]
     assert f.value(80.0, (96, 72)) == (80.0, 'focal_px')              # a set focal_px wins
     with_cam = f.odometry(odo, 0.0, (96, 72))
     assert with_cam.focal_length_px == 75.0 and f.odometry(odo, 0.0, (96, 72)) is with_cam

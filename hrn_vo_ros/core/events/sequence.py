@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence as Seq
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +38,27 @@ class CameraCalibration:
             raise DatasetError(f'focal lengths fx={self.fx}, fy={self.fy} must be positive')
 
 
+#: A camera's focal length fx (sensor pixels) and its sensor size (width, height), from its
+#: camera_info (``core.live.camera_focal_px`` scales it to frame pixels).
+CameraFocal = tuple[float, tuple[int, int]]
+
+
+def camera_focal(fx: float, width: int, height: int, *,
+                 remedy: str = 'set focal_px') -> CameraFocal:
+    """A camera's focal length (sensor pixels) and sensor size, checked: a CameraInfo's
+    ``k[0]``, ``width`` and ``height`` (``remedy``: what the error tells to set instead).
+
+    Raises:
+        DecodeError: for an uncalibrated camera (fx not a positive number) or a bad size.
+    """
+    if width <= 0 or height <= 0:
+        raise DecodeError(f'camera_info size {width}x{height} is not a sensor size')
+    if not (math.isfinite(fx) and fx > 0.0):
+        raise DecodeError(f'camera_info has no focal length (k[0] = {fx:g}: the camera is not '
+                          f'calibrated); calibrate it or {remedy}')
+    return fx, (width, height)
+
+
 #: CameraInfo distortion models read as plumb-bob (``k1 k2 p1 p2 k3``).
 PLUMB_BOB_MODELS = ('plumb_bob', 'radtan', 'rational_polynomial')
 
@@ -54,11 +76,11 @@ def calibration_from_camera_info(width: int, height: int, k: Seq[float], d: Seq[
             bad size.
     """
     k, d = [float(v) for v in k], [float(v) for v in d]
-    if width <= 0 or height <= 0:
-        raise DecodeError(f'camera_info size {width}x{height} is not a sensor size')
-    if not (k[0] > 0 and k[4] > 0):
-        raise DecodeError('camera_info has no focal length (k is zero: the camera is not '
-                          'calibrated); calibrate it or set the calib.* parameters')
+    remedy = 'set the calib.* parameters'
+    camera_focal(k[0], width, height, remedy=remedy)
+    if not (math.isfinite(k[4]) and k[4] > 0.0):
+        raise DecodeError(f'camera_info has no focal length fy (k[4] = {k[4]:g}: the camera is '
+                          f'not calibrated); calibrate it or {remedy}')
     if model not in PLUMB_BOB_MODELS and not (model == '' and not any(d)):
         raise DecodeError(f'camera_info distortion model {model!r} is not supported; use '
                           'plumb_bob (k1 k2 p1 p2 k3)')
