@@ -32,11 +32,13 @@ AUTO = {'test_events_1': '6.667', 'test_events_2': '3.611'}    # 640 / 96, 260 /
 LIVE_TRANSLATION = ['--config', str(ROOT / 'config' / 'live_translation.yaml')]
 
 
-@pytest.mark.parametrize('sets', [SETS, LIVE, LIVE_TRANSLATION],
+@pytest.mark.parametrize(('sets', 'packet'),
+                         [(SETS, 2000), (LIVE, 2000), (LIVE_TRANSLATION, 1000)],
                          ids=['shapes_rotation', 'live', 'live_translation'])
 @pytest.mark.parametrize(('name', 'events'), [('test_events_1', 343474),
                                               ('test_events_2', 571266)])
-def test_driver_bag(tmp_path: Path, name: str, events: int, sets: list[str]) -> None:
+def test_driver_bag(tmp_path: Path, name: str, events: int, sets: list[str],
+                    packet: int) -> None:
     bag = BAGS / name
     if not bag.is_dir():
         pytest.skip(f'driver bag {bag} not present')
@@ -45,7 +47,7 @@ def test_driver_bag(tmp_path: Path, name: str, events: int, sets: list[str]) -> 
     assert res.returncode == 0, res.stderr
     assert f'{events} change events' in res.stdout
     ef = read_estimate_file(out)
-    assert len(ef.series) == events // 2000
+    assert len(ef.series) == events // packet      # the config's events per frame
     if sets is not SETS:               # the live configs' auto downsample: 96x72 from both
         assert f'{len(ef.series)} frames of 96x72 (downsample {AUTO[name]})' in res.stdout
     assert ef.state is not None and ef.quality is not None

@@ -180,13 +180,13 @@ def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0
                            a[:, 4] if rcfg.scale.enabled else None), quality, state)
 
 
-@pytest.mark.parametrize(('config', 'imu'), [('shapes_rotation.yaml', False),
-                                             ('shapes_rotation.yaml', True),
-                                             ('shapes_translation.yaml', False)])
+@pytest.mark.parametrize(('config', 'imu', 'frames'), [('shapes_rotation.yaml', False, 60),
+                                                       ('shapes_rotation.yaml', True, 60),
+                                                       ('shapes_translation.yaml', False, 120)])
 def test_run_and_the_pipeline_give_identical_series(dataset: Path, tmp_path: Path,
-                                                    config: str, imu: bool) -> None:
+                                                    config: str, imu: bool, frames: int) -> None:
     """The CSV of ``hrn-vo run`` equals, byte for byte, that of a plain loop and of the dataset
-    driver of the pipeline called directly."""
+    driver of the pipeline called directly (120 000 events: 2000- or 1000-event frames)."""
     cfg = ROOT / 'config' / config
     out = tmp_path / 'run.csv'
     assert main(['run', str(dataset), '--config', str(cfg), '--out', str(out), '--quiet']
@@ -206,8 +206,8 @@ def test_run_and_the_pipeline_give_identical_series(dataset: Path, tmp_path: Pat
     # ... and the whole file, quality and state included, byte for byte
     assert out.read_bytes() == (tmp_path / 'loop.csv').read_bytes()
     assert out.read_bytes() == (tmp_path / 'pipe.csv').read_bytes()
-    check_quality_state(out, 60)
-    assert len(run.series) == 60 and (run.series.z is not None) == (config != OURS[0])
+    check_quality_state(out, frames)
+    assert len(run.series) == frames and (run.series.z is not None) == (config != OURS[0])
 
 
 def test_run_with_scale_writes_z(dataset: Path, tmp_path: Path) -> None:
@@ -217,7 +217,7 @@ def test_run_with_scale_writes_z(dataset: Path, tmp_path: Path) -> None:
     assert base_columns(out).splitlines()[0] == 't,h,v,r,z'
     assert out.read_text().splitlines()[0] == 't,h,v,r,z,quality,state'
     assert read_estimates(out).z is not None
-    check_quality_state(out, 60)
+    check_quality_state(out, 120)      # 1000-event frames
 
 
 def test_run_bad_inputs_name_the_problem(dataset: Path, tmp_path: Path,

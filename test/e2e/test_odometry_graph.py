@@ -47,7 +47,7 @@ def read_odometry(bag: Path) -> tuple[NDArray[np.int64], NDArray[np.float64],
             np.array([r[2] for r in rows]), [r[3] for r in rows])
 
 
-@pytest.mark.slow  # ~25 s on a quiet 2-core machine (6 s simulated, 730 frames)
+@pytest.mark.slow  # ~25 s on a quiet 2-core machine (6 s simulated, 1000-event frames)
 def test_graph_odometry_follows_the_estimates(tmp_path: Path) -> None:
     out = tmp_path / 'demo'
     assert hrn_vo(['demo', '--kind', 'translation', '--seconds', '6', '--seed', '1',
