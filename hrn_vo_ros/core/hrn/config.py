@@ -283,6 +283,13 @@ class TrackingConfig:
                                   'itself, at the pose the output reports (a short first packet '
                                   'at the start of the motion is a thin map; 0: off)',
                                   lo=0.0, hi=1000.0)
+    bootstrap_lost: bool = param(True, 'a track lost while its map has never learned (still '
+                                 'the frame it started from) starts a new map from the current '
+                                 'frame, at the pose the output holds, as the bootstrap does: the '
+                                 'search can only find that first view, which a translating or '
+                                 'turning camera may have left for good (with map.learn; not '
+                                 'while the gyro carries the states, tracking.gyro_poor: there '
+                                 'remap_s rules)')
     remap_s: float = param(4.0, 'with the gyro, a track lost for this long (seconds of frame '
                            'time; no re-localisation found the map) starts a new map from the '
                            "current frame at the gyro's dead-reckoned pose, as the bootstrap "

@@ -137,6 +137,7 @@ class HRN(Prediction):
         self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
         self._map_on = 0                # on pixels of the frame the map started from
+        self._map_learned = False       # the map has been updated since it started
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
         self.limited_frames = 0         # readouts cut by imu.max_correction_deg_s
@@ -277,6 +278,7 @@ class HRN(Prediction):
         self._point = point
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
                                                  or self._thin_map(n_in)
+                                                 or self._lost_unlearned(carried)
                                                  or (self.tracker.remap_due(t_ns) and gyro)):
             return self._restart(canvas, t_ns, n_in, spread, peak, sims, carried=carried)
         self._follow(point, n_on, dt_s)
@@ -284,7 +286,7 @@ class HRN(Prediction):
         if learn and (not c.tracking.enabled or (self.state != 'lost'
                                                  and self.quality >= c.tracking.map_quality)):
             eng.update_map(S, point, map_mu1(c), c.map.mu2, target)
-            updated = True
+            updated = self._map_learned = True
         if self.gyro_bias.enabled and predicted is not None and not rejected \
                 and self.state == 'tracking' and self.quality >= c.imu.bias_min_quality:
             self._learn_bias(point, predicted, dt_s)
@@ -394,13 +396,22 @@ class HRN(Prediction):
         return (fill > 0.0 and self.iteration - self._map_iteration <= map_block(c)
                 and n_in > fill * self._map_on)
 
+    def _lost_unlearned(self, carried: bool) -> bool:
+        """Whether the track is lost while its map never learned (``tracking.bootstrap_lost``):
+        the map is the one frame it started from, and the global search can only find that.
+        Not while the gyro carries the states (``carried``): ``remap_s`` rules that case."""
+        c = self.cfg
+        return (c.tracking.bootstrap_lost and c.map.learn and not carried
+                and not self._map_learned and self.state == 'lost')
+
     def _restart(self, canvas: Floats, t_ns: int, n_in: int, spread: dict[str, float],
                  peak: dict[str, float], sims: dict[str, Real], *, carried: bool) -> Estimate:
-        """Bootstrap (``tracking.bootstrap_frames``, ``bootstrap_fill``): poor frames before
-        the map was ever tracked say that the map's frame had nothing to track (noise before the
-        camera moved, a blur), and a frame with many more pixels than the map's says the map is
-        thin: this frame starts a new map, at the pose the output reports now, and the track
-        must establish itself on it again."""
+        """Bootstrap (``tracking.bootstrap_frames``, ``bootstrap_fill``, ``bootstrap_lost``):
+        poor frames before the map was ever tracked say that the map's frame had nothing to
+        track (noise before the camera moved, a blur), a frame with many more pixels than the
+        map's says the map is thin, and a loss before the map ever learned leaves nothing to
+        search but its first frame: this frame starts a new map, at the pose the output reports
+        now, and the track must establish itself on it again."""
         out = self._emit(t_ns, self._point, spread, peak, sims, False, carried=carried)
         self._pose.restart()
         self._start_map(canvas, n_in)
@@ -413,6 +424,7 @@ class HRN(Prediction):
         start, and what the map's update block (``map_block``) and ``_thin_map`` count from."""
         self._engine.start(canvas, self.rng)
         self._map_on = n_in
+        self._map_learned = False
         self._map_iteration = self.iteration
 
     def _keep_prior(self, prior: dict[str, Any], point: dict[str, float]

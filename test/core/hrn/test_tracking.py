@@ -600,7 +600,8 @@ def test_a_map_started_on_noise_is_replaced_by_the_first_frame_with_structure(
     scene = random_scene(rng)
     noise = [(rng.random((72, 96)) < 0.06).astype(np.uint8) for _ in range(10)]
     poses = trajectory(120, amp_xy=8.0, amp_roll=0.3, period=160.0)   # from pose 0, moving
-    hrn = make({'tracking': {'bootstrap_frames': bootstrap}})
+    # (bootstrap_lost off: it would start the new map once the noise's track is lost)
+    hrn = make({'tracking': {'bootstrap_frames': bootstrap, 'bootstrap_lost': False}})
     est = [hrn.step(f, i * 5_000_000) for i, f in enumerate(noise)]
     est += run(hrn, scene, poses, rng, t0=len(noise))
     tail = est[-60:]
@@ -614,6 +615,38 @@ def test_a_map_started_on_noise_is_replaced_by_the_first_frame_with_structure(
     # the output is the pose relative to the scene's first frame (the new map's), at pose 0
     err = np.abs(np.array([(e.h, e.v, e.r) for e in tail]) - poses[-60:, :3])
     assert np.all(np.median(err, axis=0) < (0.15, 0.15, 0.004)), np.median(err, axis=0)
+
+
+@pytest.mark.parametrize('on', [True, False])
+def test_a_track_lost_before_its_map_learned_starts_a_new_map(on: bool) -> None:
+    """The camera leaves its first view before the map learns (here: 4 frames of one scene
+    inside the 10-frame learning block, then another scene): the frames are poor, the track is
+    lost after ``lose_frames``, and the global search can only find the first view. With
+    tracking.bootstrap_lost the lost frame starts a new map at the held pose and the output
+    follows the new scene's motion from there; without it the output holds for good."""
+    rng = np.random.default_rng(0)
+    first, second = random_scene(rng), random_scene(np.random.default_rng(7))
+    poses = trajectory(150, amp_xy=6.0, period=150.0)     # no roll: shifts add as they are
+    hrn = make({'tracking': {'bootstrap_lost': on}, 'map': {'mu1': 0.985, 'mu2': 0.0075,
+                                                             'block_iterations': 20}})
+    est = run(hrn, first, np.zeros((4, 4)), rng)
+    est += run(hrn, second, poses, rng, t0=4)
+    lost = next(i for i, e in enumerate(est) if e.state == 'lost')
+    assert lost == 4 + hrn.cfg.tracking.lose_frames - 1    # the 25th poor frame in a row
+    tail = est[-60:]
+    if not on:
+        assert hrn.tracker.restarts == 0
+        assert all(e.state == 'lost' for e in tail)
+        assert len({(e.h, e.v, e.r) for e in est[lost:]}) == 1      # held, never moves
+        return
+    assert hrn.tracker.restarts == 1        # once: the new map learns
+    assert all(e.state == 'tracking' for e in tail)
+    # the output moves as the camera does since the new map's frame (the held pose added)
+    k = lost - 4                            # the pose index of the restarting frame
+    got = np.array([(e.h, e.v, e.r) for e in tail]) - np.array((est[lost].h, est[lost].v,
+                                                                est[lost].r))
+    err = np.median(np.abs(got - (poses[-60:, :3] - poses[k, :3])), axis=0)
+    assert np.all(err < (0.15, 0.15, 0.003)), err     # measured 0.09, 0.06 px, 0.0008 rad
 
 
 def test_a_thin_first_map_is_replaced_by_a_fuller_frame() -> None:
