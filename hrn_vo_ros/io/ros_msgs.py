@@ -130,8 +130,6 @@ def frame_to_image(image: NDArray[np.uint8], t_ns: int, frame_id: str) -> Image:
     return msg
 
 
-
-
 def camera_info_to_calibration(msg: Any) -> CameraCalibration:
     """The calibration in a ``sensor_msgs/CameraInfo`` (of rclpy or a bag reader;
     ``core.events.sequence.calibration_from_camera_info``).

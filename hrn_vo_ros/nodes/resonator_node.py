@@ -34,14 +34,10 @@ import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
-from tf2_msgs.msg import TFMessage
+from sensor_msgs.msg import CameraInfo, Image, Imu
 
-from hrn_vo_ros.core.clock import RateLimit, Recent, Throttle
+from hrn_vo_ros.core.clock import Recent, Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
@@ -58,6 +54,7 @@ from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
 from hrn_vo_ros.nodes.common import CameraInfoInput, publish_diagnostics, qos, Rejects, run, worst
+from hrn_vo_ros.nodes.outputs import OdometryOutputs
 from hrn_vo_ros.nodes.params import declare_config
 from hrn_vo_ros.nodes.stats import NodeStats
 
@@ -81,15 +78,9 @@ class ResonatorNode(Node):
             resize=lambda w, h: sized_resonator(self._focal.config(self._algo.config, (w, h)),
                                                 w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
-        self._image_rate, self._throttle = RateLimit(), Throttle()
+        self._throttle = Throttle()
         self._dropped = Recent()                          # frames the queue dropped, when
-        self._pub_readout = self.create_publisher(JointState, '~/readout', qos(1000))
-        self._pub_pose = self.create_publisher(PoseStamped, '~/pose', qos(1000))
-        self._pub_odom = self.create_publisher(Odometry, '~/odom', qos(1000))
-        self._pub_map = self.create_publisher(Image, '~/map_image', 2)
-        self._pub_readout_img = self.create_publisher(Image, '~/readout_image', 2)
-        self._outputs = [self._pub_readout, self._pub_pose, self._pub_odom] + (
-            [self.create_publisher(TFMessage, '/tf', 100)] if opts.publish_tf else [])
+        self._out = OdometryOutputs(self, opts.publish_tf)
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         if opts.publish_static_tf:
             self._publish_static_tf()
@@ -133,15 +124,11 @@ class ResonatorNode(Node):
     def _publish_static_tf(self) -> None:
         """base_link → camera (mount) and camera → IMU (``imu.camera_from_imu``) on /tf_static."""
         opts = self._opts.config
-        self._pub_static = self.create_publisher(TFMessage, '/tf_static', QoSProfile(
-            depth=1, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL))
         frames, notes = self._live.static_frames(self._settings(), base=opts.base_frame_id,
                                                  camera=opts.camera_frame_id,
                                                  imu=opts.imu_frame_id)
         self._emit(notes)
-        self._pub_static.publish(ros_msgs.static_transforms(
-            self.get_clock().now().nanoseconds, frames))
+        self._out.static(frames)
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
@@ -203,32 +190,22 @@ class ResonatorNode(Node):
                                                               self._opts.config.log_throttle_s):
                     self.get_logger().warning(item.text)
                 continue
-            t0, opts = time.perf_counter(), self._opts.config
-            for pub, m in zip(self._outputs, ros_msgs.step_messages(
-                    item, opts.odom_frame_id, opts.base_frame_id, opts.camera_frame_id,
-                    with_tf=len(self._outputs) > 3), strict=True):
-                pub.publish(m)
+            t0 = time.perf_counter()
+            self._out.step(item, self._opts.config)
             self.stats.processing(item.seconds + time.perf_counter() - t0)
             self._publish_images(item.t_ns)
 
     def _publish_images(self, t_ns: int) -> bool:
         """The map images, at most ``map_image_rate_hz``; whether they were published."""
-        if not self._image_rate.due(self._opts.config.map_image_rate_hz):
-            return False
-        frame = self._opts.config.camera_frame_id
-        self._pub_map.publish(ros_msgs.float_image_to_mono8(self._hrn.map_image(), t_ns, frame))
-        self._pub_readout_img.publish(
-            ros_msgs.float_image_to_mono8(self._hrn.egocentric_map_image(), t_ns, frame))
-        return True
+        return self._out.images(t_ns, self._hrn, self._opts.config)
 
     def _on_timer(self) -> None:
         self._emit(self._live.tick(self._settings()))
         if self._focal.camera is None and self._camera_info is not None:
             self._camera_info.recheck()
         extra = self._live.diagnostic_values(
-            f'{self.stats.rate("estimates_out"):.1f}', min(
-                p.get_subscription_count() for p in self._outputs[:3]),
-            self._pub_odom.get_subscription_count()) + self._focal.diagnostic_values(
+            f'{self.stats.rate("estimates_out"):.1f}', *self._out.subscribers()
+        ) + self._focal.diagnostic_values(
                 self._algo.config.focal_px, self._live.size, self._opts.config.odometry
             ) + self._extra_diagnostics()
         window_s = self._opts.config.diagnostics_window_s
