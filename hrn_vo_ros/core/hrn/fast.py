@@ -46,7 +46,9 @@ class FastEngine:
     :meth:`send` (what a population passes on), :meth:`update` (one factor's cleanup and state
     update) and the class attribute ``direct``: a subclass whose populations exchange full
     spectra through ``send`` sets it to False, so the general form runs (the direct form never
-    calls ``send``, and cleans h and v together without ``update`` where it can).
+    calls ``send``, and cleans h and v together without ``update`` where it can), and
+    ``single``: the frame and map spectra in single precision in either form (the factor
+    states and cleanups stay double); the spiking backend's dense reference sets it to False.
 
     Args:
         cfg: The resonator configuration (``path='fast'``, DFT codebooks).
@@ -55,6 +57,8 @@ class FastEngine:
 
     #: Run the direct form where the configuration allows it (see the class docstring).
     direct = True
+    #: Frame and map spectra in single precision also in the general form (class docstring).
+    single = True
 
     def __init__(self, cfg: ResonatorConfig, g: Geometry) -> None:
         self.cfg = cfg
@@ -92,14 +96,15 @@ class FastEngine:
         self._row_len = np.repeat(np.asarray(lens, np.float64), lens)   # n of each entry
         self._row_dec = np.concatenate([self._perm_dec[k] + sl.start for k, sl in
                                         zip(self._rows, self._row_slices, strict=True)])
-        # the frame and map spectra: single precision in the direct form (rounding ~1e-7 of
-        # the map's own scale; the factor states and cleanups stay double)
-        self._cdt: type[np.complexfloating] = np.complex64 if self._direct else np.complex128
+        # the frame and map spectra: single precision (rounding ~1e-7 of the map's own
+        # scale; the factor states and cleanups stay double), unless a subclass asks for double
+        self._cdt: type[np.complexfloating] = (np.complex64 if self._direct or self.single
+                                               else np.complex128)
         self._S_roll: Spectrum = np.zeros(0, self._cdt)   # n_ρ w² ⊙ S_θ (direct form)
         w2 = self.lp.w ** 2 if self.lp.weighted else np.ones(g.n_rho)
         self._roll_rows = (g.n_rho * w2).astype(np.float32)[:, None]   # its per-ring factor
-        self._sw_key: Complex | None = None
-        self._sw: Complex = np.zeros(0, np.complex128)
+        self._sw_key: Spectrum | None = None
+        self._sw: Spectrum = np.zeros(0, self._cdt)
         self.state: dict[str, Complex] = {}
         self.drive: dict[str, Real] = {}      # normalised Re X† u of the last cleanups
         self.inputs: dict[str, Complex] = {}   # the last cleanup inputs (marginals) a
@@ -127,9 +132,10 @@ class FastEngine:
             S: Spectrum = np.asarray(hfft.fft(lp, axis=1), self._cdt)
             self._S_roll = S * self._roll_rows
             return S
-        S = self.lp.encode_image_lp(canvas)
+        S = np.asarray(self.lp.encode_image_lp(canvas), self._cdt)
         if self.lp.weighted and self.lp.last_lp_image is not None:
-            self._sw_key, self._sw = S, self.lp.weight_image(self.lp.last_lp_image)
+            self._sw_key = S
+            self._sw = np.asarray(self.lp.weight_image(self.lp.last_lp_image), self._cdt)
         return S
 
     def start(self, canvas: Floats, rng: np.random.Generator) -> None:
@@ -249,11 +255,11 @@ class FastEngine:
         drive ``a`` (the spiking backend replaces it with its neuron layers)."""
         return self._blend(x, self._clean(name, a))
 
-    def _weighted_input(self, S: Complex) -> Complex:
+    def _weighted_input(self, S: Spectrum) -> Spectrum:
         if not self.lp.weighted:
             return S
         if self._sw_key is not S:                   # once per frame (S is fixed within it)
-            self._sw_key, self._sw = S, self.lp.weight(S)
+            self._sw_key, self._sw = S, np.asarray(self.lp.weight(S), S.dtype)
         return self._sw
 
     def iterate(self, S: Complex) -> None:
@@ -263,18 +269,19 @@ class FastEngine:
         st = self.state
         h, v, r = st['h'], st['v'], st['r']
         z = st.get('z')
+        dt = self._cdt          # the spectra's precision (the states, double, are cast to it)
         S = self.send('S', S)
-        m = self.send('m', np.asarray(self.m, np.complex128))   # (double unless direct)
+        m = self.send('m', np.asarray(self.m, dt))
         mc = self._mc if m is self.m else m.conj()
-        q = S * r.conj()[None, :]
+        q = S * r.conj().astype(dt)[None, :]
         if z is not None:
-            q *= z.conj()[:, None]
+            q *= z.conj().astype(dt)[:, None]
         u = self.send('p', self.lp.reverse(q))      # p̂ = Λ'(S ⊙ r̂* ⊙ ẑ*)
         u *= mc                                     # p̂ ⊙ m̂*
         # l̂ = Λ(m̂ ⊙ ĥ ⊙ v̂); the roll/scale correlation uses ring-weighted log-polar images
         # (D_w S ⊙ (D_w l̂)*, identity when logpolar.ring_weight = 0).
-        mvh = np.multiply(m, v[:, None], out=self._mvh)
-        mvh *= h[None, :]
+        mvh = np.multiply(m, v.astype(dt)[:, None], out=self._mvh)
+        mvh *= h.astype(dt)[None, :]
         w = self.send('l', self.lp.forward_weighted(mvh))
         np.conjugate(w, out=w)
         w *= self._weighted_input(S)                # S ⊙ l̂*
@@ -283,15 +290,17 @@ class FastEngine:
             u, w = fhrr.phasor(u), fhrr.phasor(w)
             hb, vb, rb = fhrr.phasor(h), fhrr.phasor(v), fhrr.phasor(r)
             zb = None if z is None else fhrr.phasor(z)
-        # (broadcast products and sums, not einsum: see _iterate_direct)
-        a_h = (u * vb.conj()[:, None]).sum(axis=0)  # Σ_ky over p̂ ⊙ m̂* ⊙ v̂*
-        a_v = (u * hb.conj()[None, :]).sum(axis=1)  # Σ_kx over p̂ ⊙ m̂* ⊙ ĥ*
+        # (broadcast products and sums, not einsum: see _iterate_direct; in the spectra's
+        # precision, the marginals then double as the states)
+        c128 = np.complex128
+        a_h = (u * vb.conj().astype(u.dtype)[:, None]).sum(axis=0).astype(c128)  # Σ_ky p̂m̂*v̂*
+        a_v = (u * hb.conj().astype(u.dtype)[None, :]).sum(axis=1).astype(c128)  # Σ_kx p̂m̂*ĥ*
         if z is not None and zb is not None:
-            a_r = (w * zb.conj()[:, None]).sum(axis=0)
-            a_z = (w * rb.conj()[None, :]).sum(axis=1)
+            a_r = (w * zb.conj().astype(w.dtype)[:, None]).sum(axis=0).astype(c128)
+            a_z = (w * rb.conj().astype(w.dtype)[None, :]).sum(axis=1).astype(c128)
             st['z'] = self.update('z', z, a_z)
         else:
-            a_r = w.sum(axis=0)
+            a_r = w.sum(axis=0).astype(c128)
         self.inputs.update(h=a_h, v=a_v, r=a_r)
         if z is not None:
             self.inputs['z'] = a_z
@@ -362,7 +371,7 @@ class FastEngine:
         jp, dt = self._jphases, self._cdt           # z0^a = exp((1j φ) a), as fhrr.power
         q = S * np.exp(jp['r'] * float(-point['r'])).astype(dt)[None, :]
         if self.has_z:
-            q *= np.exp(jp['z'] * float(-point['z']))[:, None]
+            q *= np.exp(jp['z'] * float(-point['z'])).astype(dt)[:, None]
         t = self.lp.reverse_theta(q) if self._direct else self.lp.reverse(q)
         t *= np.exp(jp['v'] * float(-point['v'])).astype(dt)[:, None]
         t *= np.exp(jp['h'] * float(-point['h'])).astype(dt)[None, :]

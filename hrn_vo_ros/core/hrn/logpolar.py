@@ -255,9 +255,11 @@ class LogPolarTransform:
         self._Twc = sp.diags(wrow).tocsr() @ self._Tc if self.weighted else self._Tc
 
     @functools.cached_property
-    def _single(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-        """T and T' as complex64 (built on first use: only the fast engine's direct form)."""
-        return self._Tc.astype(np.complex64), self._Trc.astype(np.complex64)
+    def _single(self) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
+        """T, T' and W T as complex64 (built on first use: the fast engine's spectra are single
+        precision)."""
+        return (self._Tc.astype(np.complex64), self._Trc.astype(np.complex64),
+                self._Twc.astype(np.complex64))
 
     def lp_image(self, canvas: NDArray[np.floating]) -> NDArray[np.float64]:
         """The log-polar image ``T · canvas``. Shapes: (H_c, W_c) real → (n_rho, n_theta)."""
@@ -286,16 +288,20 @@ class LogPolarTransform:
         return np.asarray(out, np.complex128)
 
     def forward_weighted(self, x: Complex) -> Complex:
-        """Λ_w x = fft2_LP(W T · ifft2_C(x)), W = diag(ring weights). Shapes: as forward."""
+        """Λ_w x = fft2_LP(W T · ifft2_C(x)), W = diag(ring weights). Shapes: as forward;
+        complex64 in, complex64 out (else complex128)."""
         img = hfft.ifft2(x, workers=self.workers).ravel()
+        if x.dtype == np.complex64:
+            return np.asarray(hfft.fft2(csr_matvec(self._single[2], img).reshape(self.lp_shape),
+                                        workers=self.workers, overwrite_x=True), np.complex64)
         out = hfft.fft2((self._Twc @ img).reshape(self.lp_shape), workers=self.workers,
                         overwrite_x=True)
         return np.asarray(out, np.complex128)
 
-    def weight(self, y: Complex) -> Complex:
+    def weight(self, y: NDArray[np.complexfloating[Any, Any]]) -> Complex:
         """D_w y = fft2(W · ifft2(y)): ring-weight a log-polar vector. Shapes: (n_rho, n_theta)."""
         if not self.weighted:
-            return y
+            return np.asarray(y, np.complex128)
         img = hfft.ifft2(y, workers=self.workers)
         img *= self.w[:, None]
         return np.asarray(hfft.fft2(img, workers=self.workers, overwrite_x=True),
@@ -323,8 +329,12 @@ class LogPolarTransform:
         return np.asarray(out, x.dtype)
 
     def reverse(self, y: Complex) -> Complex:
-        """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c)."""
+        """Λ' y. Shapes: y (n_rho, n_theta) → (H_c, W_c); complex64 in, complex64 out (else
+        complex128)."""
         img = hfft.ifft2(y, workers=self.workers).ravel()
+        if y.dtype == np.complex64:
+            return np.asarray(hfft.fft2(csr_matvec(self._single[1], img).reshape(
+                self.cart_shape), workers=self.workers, overwrite_x=True), np.complex64)
         out = hfft.fft2((self._Trc @ img).reshape(self.cart_shape), workers=self.workers,
                         overwrite_x=True)
         return np.asarray(out, np.complex128)

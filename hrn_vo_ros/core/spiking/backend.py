@@ -76,6 +76,7 @@ class SpikingEngine(FastEngine):
     """
 
     direct = False
+    single = False      # the dense form is the reference: double-precision spectra
 
     def __init__(self, cfg: ResonatorConfig, g: Geometry, scfg: SpikingConfig) -> None:
         super().__init__(cfg, g)

@@ -160,6 +160,7 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
         base['readout'] = {'refine': True, 'refine_input': 'h,v,z'}   # r refines on its state
     fast = make(base, seed=3)
     assert fast._engine._direct is not scale          # type: ignore[attr-defined]
+    assert fast._engine.m.dtype == np.complex64       # type: ignore[attr-defined]  # either form
     dense = make({**base, 'path': 'dense'}, seed=3)
     rng = np.random.default_rng(0)
     scene = random_scene(rng, size=100, n_shapes=40)
