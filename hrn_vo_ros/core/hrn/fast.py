@@ -291,7 +291,7 @@ class FastEngine:
             hb, vb, rb = fhrr.phasor(h), fhrr.phasor(v), fhrr.phasor(r)
             zb = None if z is None else fhrr.phasor(z)
         # (broadcast products and sums, not einsum: see _iterate_direct; in the spectra's
-        # precision, the marginals then double as the states)
+        # precision, the marginals then cast back to double, the states' precision)
         c128 = np.complex128
         a_h = (u * vb.conj().astype(u.dtype)[:, None]).sum(axis=0).astype(c128)  # Σ_ky p̂m̂*v̂*
         a_v = (u * hb.conj().astype(u.dtype)[None, :]).sum(axis=1).astype(c128)  # Σ_kx p̂m̂*ĥ*
