@@ -27,7 +27,10 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   columns ``silent_tc``, ``late_tc``) counts them and the late flags again with the calibration
   fitted only on the estimates reported as ``'tracking'`` (``evaluate``'s ``calib_use``): a
   loss inside the calibration segment makes the protocol fit the lost output (``cal_scale``,
-  the fitted scale, then lies far from 1/f) and every error of that sequence with it;
+  the fitted scale, then lies far from 1/f) and every error of that sequence with it; the
+  same line names the sequences whose protocol lag (CSV column ``lag_s``) lies beyond
+  ±``ODD_LAG_S`` (0.1 s): one late jump of the estimate can pull the lag search there and
+  shift every error of the sequence;
 * **late flag**: a loss whose first ``FLAG_FRAMES`` (10) frames all report ``state ==
   'tracking'`` (the estimator did not say within 10 frames that it may be wrong); 'n/a' as
   for silent losses;
@@ -144,6 +147,7 @@ class Row:
     cal_scale: float = math.nan   # the protocol's fitted calibration scale (rad or m per px)
     silent_tc: int | None = None  # silent losses with the calibration on 'tracking' estimates
     late_tc: int | None = None    # late flags, the same way
+    lag_s: float = math.nan       # the protocol's lag (s, + = the estimate lags)
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -341,7 +345,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         late: int | None = None
         silent_tc: int | None = None
         late_tc: int | None = None
-        scale = math.nan
+        scale = lag = math.nan
         try:
             est, states, quality = _run(method, kind, seq, t, imgs)
             res = evaluate(seq.groundtruth, est, kind)
@@ -350,6 +354,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
             t_s, err = s.t_s[keep], s.err[keep]
             med = res.metrics[METRIC[kind]]
             scale = float(res.calibration['scale'])
+            lag = float(res.lag_s)
             eps = losses(t_s, err, THRESHOLD[kind])
             lost = bool(eps)
             lost_s = float(sum(t_s[j] - t_s[i] for i, j, _ in eps))
@@ -373,7 +378,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
                        len(eps), silent, late, reloc, time.perf_counter() - t0, note,
-                       d.summary(), scale, silent_tc, late_tc))
+                       d.summary(), scale, silent_tc, late_tc, lag))
     return out
 
 
@@ -534,8 +539,21 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                              f'{sum(int(r.late or 0) for r in rs)} -> '
                              f'{sum(int(r.late_tc or 0) for r in judged)} '
                              f'(unjudged {len(rs) - len(judged)}: '
-                             f'{" ".join(str(r.seed) for r in rs if r.silent_tc is None) or "-"})')
+                             f'{" ".join(str(r.seed) for r in rs if r.silent_tc is None) or "-"})'
+                             + _odd_lags(rs))
     return lines
+
+
+#: A protocol lag beyond this (s) is named after the silent losses: the lag search (the roll's
+#: correlation over the whole run) can be pulled far off by one late jump of the estimate.
+ODD_LAG_S = 0.1
+
+
+def _odd_lags(rs: list[Row]) -> str:
+    """``, lag beyond ±0.1 s: SEED (LAG s) ...`` for the rows whose protocol lag is that far."""
+    odd = [r for r in rs if abs(r.lag_s) > ODD_LAG_S]
+    names = ' '.join(f'{r.seed} ({r.lag_s:+.2f} s)' for r in odd)
+    return f', lag beyond ±{ODD_LAG_S:g} s: {names}' if odd else ''
 
 
 #: How a ``--csv`` cell becomes a :class:`Row` field, by the field's annotation.

@@ -1,0 +1,33 @@
+"""The robustness benchmark's row helpers: the odd-lag note and CSVs written before a column."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+import sys
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / 'bench'))
+robustness = pytest.importorskip('bench_robustness')
+
+
+def _row(seed: int, lag_s: float) -> object:
+    return robustness.Row('rotation', seed, 'hrn', 10.0, 1e5, 100.0, 0.5, False, 0.0, 0, 0, 0,
+                          '', 1.0, '', 'draw', lag_s=lag_s)
+
+
+def test_only_lags_beyond_a_tenth_of_a_second_are_named() -> None:
+    rows = [_row(1, 0.002), _row(2, -0.375), _row(3, 0.1), _row(4, math.nan), _row(5, 0.101)]
+    assert robustness._odd_lags(rows) == ', lag beyond ±0.1 s: 2 (-0.38 s) 5 (+0.10 s)'
+    assert robustness._odd_lags(rows[:1]) == ''
+
+
+def test_a_csv_without_the_lag_column_reads_as_unknown_lags(tmp_path: Path) -> None:
+    path = tmp_path / 'old.csv'
+    header = ('kind,seed,method,seconds,events_per_s,peak,median_err,lost,lost_s,losses,silent,'
+              'late,reloc_s,wall_s,note,draw')
+    path.write_text(header + '\nrotation,7,hrn,10.0,1000.0,50.0,0.4,False,0.0,0,0,0,,1.0,,d\n')
+    (row,) = robustness.read_rows(path)
+    assert row.seed == 7 and math.isnan(row.lag_s) and robustness._odd_lags([row]) == ''
