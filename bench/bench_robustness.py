@@ -218,12 +218,13 @@ def _config_tag(kind: str) -> str:
 
 def imu_framing(kind: str) -> bool:
     """Whether the kind's config (with ``--pset``) makes other packets for a fused gyro
-    (its packet time limit, ``PacketizerConfig.frame_ms``, changes with ``imu.enabled``):
+    (its packet time limit, ``PacketizerConfig.frame_ms``, or the refill of packets closed by
+    time, ``refills``, changes with ``imu.enabled``):
     HRN + IMU then runs on those."""
     path = config_path(kind)
     plain = load_configs(path, packetizer=P_OVERRIDES)[0]
     gyro = load_configs(path, packetizer={**P_OVERRIDES, 'imu.enabled': True})[0]
-    return gyro.frame_ms != plain.frame_ms
+    return (gyro.frame_ms, gyro.refills) != (plain.frame_ms, plain.refills)
 
 
 def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False

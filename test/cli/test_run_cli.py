@@ -128,19 +128,21 @@ def test_run_writes_estimates_that_follow_the_motion(dataset: Path, tmp_path: Pa
 
 
 def test_run_with_the_gyro_makes_the_packets_of_a_fused_gyro(tmp_path: Path) -> None:
-    """A slow camera (2000 events per 400 ms): without the gyro one frame per 2000 events; with
-    --imu the rotation config's imu.max_frame_ms (100 ms, at least min_frame_events 250) closes
-    packets of about 500 events, four per 400 ms."""
+    """A slow camera (2000 events per 400 ms): the rotation config's 100 ms limit (at least
+    min_frame_events 250) closes packets of about 500 events, four per 400 ms, with the gyro
+    (imu.max_frame_ms) and without it (max_frame_ms, refilled); without a limit one frame per
+    2000 events."""
     data = synthetic_dataset(tmp_path / 'slow', n_frames=6, frame_ns=400_000_000)
     cfg = ROOT / 'config' / 'shapes_rotation.yaml'
     counts = {}
-    for imu in (False, True):
-        out = tmp_path / f'est_{imu}.csv'
+    for imu, limit in ((False, True), (True, True), (False, False)):
+        out = tmp_path / f'est_{imu}_{limit}.csv'
         assert main(['run', str(data), '--config', str(cfg), '--out', str(out), '--quiet']
-                    + (['--imu'] if imu else [])) == 0
-        counts[imu] = len(read_estimates(out))
-    assert counts[False] == 6
-    assert 20 <= counts[True] <= 25
+                    + (['--imu'] if imu else [])
+                    + ([] if limit else ['--set', 'packetizer.max_frame_ms=0'])) == 0
+        counts[imu, limit] = len(read_estimates(out))
+    assert counts[False, False] == 6
+    assert 20 <= counts[True, True] <= 25 and 20 <= counts[False, True] <= 25
 
 
 def reference_loop(dataset: Path, config: Path, imu: bool, seed: int = 0

@@ -101,7 +101,7 @@ def test_push_packetizes_events_into_frames() -> None:
     t = np.sort(rng.integers(0, 10**9, n))
     x, y = rng.integers(0, 240, n), rng.integers(0, 180, n)
     ev = EventArray.from_arrays(t, x, y, np.zeros(n, np.uint8))
-    pcfg = PacketizerConfig()
+    pcfg = PacketizerConfig(max_frame_ms=0.0)                  # packets by count only
     want = Packetizer(pcfg).push(ev)
     rec = Recorder()
     pipe = OdometryPipeline(rec, packetizer=Packetizer(pcfg), with_z=True)

@@ -31,6 +31,17 @@ the launch file's ``use_imu:=true`` and ``hrn-vo run --imu``) ``imu.max_frame_ms
 more than what each frame holds; without it short sparse frames cost more than they give
 (docs/results.md).
 
+**Refilled packets** (``refill``, with ``max_frame_ms``): a packet that closes by time with fewer
+than ``events_per_frame`` events is binned together with the events just before it, up to
+``events_per_frame``, so each frame holds the newest ``events_per_frame`` events (a sliding
+window) and its time is the midpoint of that window. A slow scene then gives frames at a steady
+rate (one per ``max_frame_ms``) that hold as much as a full packet, where a thin packet alone
+held too little to match against the map; busy streams fill their packets first and are binned
+as before. The stateful form keeps the last ``events_per_frame`` binned events for this, so
+streaming still equals batch. Not with the gyro's own limit (``imu.max_frame_ms``): the gyro
+carries the motion between thin frames, and refilled ones, which span the motion of a whole
+packet, cost accuracy there (docs/results.md).
+
 **Event-rate cap** (``max_frame_hz`` > 0, 1500 by default; :mod:`.ratecap`): above
 ``events_per_frame * max_frame_hz`` events per second, counted over the previous window of
 ``rate_window_ms`` (windows fixed in sensor time), only an even share of the events goes on to
@@ -119,7 +130,8 @@ def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]
     A packet starting at event ``s`` (time ``t[s]``) closes after ``events_per_frame`` events,
     or, with a time limit (``max_frame_ms`` > 0, or ``imu.max_frame_ms`` with ``imu.enabled``:
     :attr:`PacketizerConfig.frame_ms`), at the first event at or after ``t[s] + limit`` when
-    it holds at least ``min_frame_events`` by then (else once it holds them). A packet is
+    it holds at least ``min_frame_events`` by then (else once it holds them; at most
+    ``events_per_frame``, :attr:`PacketizerConfig.min_events`). A packet is
     complete only when later events cannot change it: its count is reached, or an event at or
     after its window's end has arrived. So the same events give the same packets however they
     are split into batches.
@@ -131,7 +143,7 @@ def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]
     span = cfg.max_frame_ns
     if span <= 0:
         return np.arange(k, n + 1, k, dtype=np.intp)
-    m = cfg.min_frame_events
+    m = cfg.min_events
     ends: list[int] = []
     s = 0
     while s < n:
@@ -144,10 +156,25 @@ def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]
     return np.asarray(ends, dtype=np.intp)
 
 
-def _packet_times(t: NDArray[np.int64], ends: NDArray[np.intp]
+def frame_starts(ends: NDArray[np.intp], cfg: PacketizerConfig, start: int = 0
+                 ) -> NDArray[np.intp]:
+    """Start indices of the frames of the packets ending at ``ends`` (the first packet starts
+    at ``start``): each packet's own first event, or when packets are refilled
+    (:attr:`PacketizerConfig.refills`) the ``events_per_frame``-th event before its end (at
+    least 0), so that a packet closed early by time is binned with the events before it.
+
+    Shapes:
+        ends: (n,) intp; returns (n,) intp.
+    """
+    if cfg.refills:
+        return np.maximum(ends - cfg.events_per_frame, 0).astype(np.intp)
+    return np.concatenate([[start], ends[:-1]]).astype(np.intp)
+
+
+def _packet_times(t: NDArray[np.int64], starts: NDArray[np.intp], ends: NDArray[np.intp]
                   ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """First, last and midpoint (rounded down) event time of the packets ending at ``ends``."""
-    first, last = t[ends - np.diff(ends, prepend=0)], t[ends - 1]
+    """First, last and midpoint (rounded down) event time of the frames ``[starts, ends)``."""
+    first, last = t[starts], t[ends - 1]
     return first, last, first + (last - first) // 2
 
 
@@ -189,16 +216,20 @@ class _Binner:
             return pix, ev.t
         return pix[inside], ev.t[inside]
 
-    def images(self, pix: NDArray[np.int32], ends: NDArray[np.intp], noisy: bool = False
-               ) -> NDArray[np.uint8]:
-        """Binary frames of the consecutive packets ending at ``ends`` (the first starts at 0)
-        from flat pixel indices (``noisy``: a pixel needs one event more than
-        ``min_events_per_pixel``)."""
+    def images(self, pix: NDArray[np.int32], starts: NDArray[np.intp], ends: NDArray[np.intp],
+               noisy: bool = False) -> NDArray[np.uint8]:
+        """Binary frames of the events ``[starts[i], ends[i])`` of the flat pixel indices
+        ``pix`` (consecutive packets, or overlapping windows with ``refill``; ``noisy``: a pixel
+        needs one event more than ``min_events_per_pixel``)."""
         npx = self.h * self.w
         n_packets = len(ends)
-        used = int(ends[-1]) if n_packets else 0
-        flat = pix[:used].astype(np.intp)
-        sizes = np.diff(ends, prepend=0)
+        sizes = ends - starts
+        if n_packets and int(starts[0]) == 0 and np.array_equal(starts[1:], ends[:-1]):
+            flat = pix[:int(ends[-1])].astype(np.intp)      # consecutive: no gather
+        else:                       # overlapping windows: gather each window's events
+            idx = np.arange(int(sizes.sum()), dtype=np.intp)
+            idx += np.repeat(starts - (np.cumsum(sizes) - sizes), sizes)
+            flat = pix[idx].astype(np.intp)
         flat += np.repeat(np.arange(n_packets, dtype=np.intp) * npx, sizes)
         need = self.cfg.min_events_per_pixel + int(noisy)
         if need <= 1:
@@ -327,8 +358,9 @@ def frames_from_events(ev: EventArray, cfg: PacketizerConfig
         ev = cap.push(ev)
     pix, t = b.pixels(ev)
     ends = packet_ends(t, cfg)
-    images = b.images(pix, ends, _noisy(cfg, probe))
-    return _packet_times(t, ends)[2], images
+    starts = frame_starts(ends, cfg)
+    images = b.images(pix, starts, ends, _noisy(cfg, probe))
+    return _packet_times(t, starts, ends)[2], images
 
 
 class Packetizer:
@@ -347,6 +379,10 @@ class Packetizer:
         self._pend_pix: list[NDArray[np.int32]] = []
         self._pend_t: list[NDArray[np.int64]] = []
         self._pending = 0
+        # (with refill: the newest binned events, which a packet closed by time is filled
+        # up with)
+        self._hist_pix: NDArray[np.int32] = np.empty(0, np.int32)
+        self._hist_t: NDArray[np.int64] = np.empty(0, np.int64)
         self._last_t: int | None = None
         self._outside = 0
         self._filter = denoiser(self.cfg)
@@ -404,6 +440,7 @@ class Packetizer:
     def reset(self) -> None:
         """Drop pending events, the time-order memory and the background measurement."""
         self._pend_pix, self._pend_t, self._pending, self._last_t = [], [], 0, None
+        self._hist_pix, self._hist_t = np.empty(0, np.int32), np.empty(0, np.int64)
         self._ended = False
         if self._filter is not None:
             self._filter.reset()
@@ -461,8 +498,8 @@ class Packetizer:
 
     @property
     def _fewest(self) -> int:
-        """The fewest events that can close a packet (min_frame_events <= events_per_frame)."""
-        return self.cfg.min_frame_events if self.cfg.max_frame_ns > 0 else \
+        """The fewest events that can close a packet."""
+        return self.cfg.min_events if self.cfg.max_frame_ns > 0 else \
             self.cfg.events_per_frame
 
     def _close(self, pix: NDArray[np.int32], t: NDArray[np.int64],
@@ -471,13 +508,22 @@ class Packetizer:
         (``total`` of them); the rest stays pending."""
         ends = packet_ends(t, self.cfg)
         used = int(ends[-1]) if len(ends) else 0
-        first, last, mid = _packet_times(t, ends)
-        images = self._b.images(pix, ends, self.noisy)
         rest = total - used
         self._pend_pix = [pix[used:].copy()] if rest else []
         self._pend_t = [t[used:].copy()] if rest else []
         self._pending = rest
-        sizes = np.diff(ends, prepend=0)
+        if not len(ends):
+            return []
+        if self.cfg.refills:                  # the binned events before these packets come first
+            k, h = self.cfg.events_per_frame, len(self._hist_t)
+            pix = np.concatenate([self._hist_pix, pix[:used]])
+            t = np.concatenate([self._hist_t, t[:used]])
+            ends = ends + h
+            self._hist_pix, self._hist_t = pix[-k:].copy(), t[-k:].copy()
+        starts = frame_starts(ends, self.cfg)
+        first, last, mid = _packet_times(t, starts, ends)
+        images = self._b.images(pix, starts, ends, self.noisy)
+        sizes = ends - starts
         return [EventFrame(t_ns=int(mid[i]), image=images[i], n_events=int(sizes[i]),
                            t_first_ns=int(first[i]), t_last_ns=int(last[i]))
                 for i in range(len(ends))]

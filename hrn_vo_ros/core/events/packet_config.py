@@ -104,7 +104,7 @@ class PacketizerConfig:
     noise_isolation_ms: float = param(5.0, 'an event is isolated without another event in its '
                                       '3x3 pixels within the same or an adjacent bin of this '
                                       'many ms', lo=0.001, hi=1e6)
-    max_frame_ms: float = param(0.0, 'a packet also closes once it spans this many ms and '
+    max_frame_ms: float = param(100.0, 'a packet also closes once it spans this many ms and '
                                 'holds at least min_frame_events events (slow or sparse '
                                 'scenes still give frames at a steady rate); 0: off, every '
                                 'packet holds events_per_frame events', lo=0.0, hi=1e6)
@@ -117,7 +117,15 @@ class PacketizerConfig:
                                 'such a sensor); 0: off', lo=0.0, hi=1e7)
     rate_window_ms: float = param(10.0, 'window of the event-rate cap, ms', lo=1.0, hi=1e6)
     min_frame_events: int = param(250, 'fewest events of a packet closed by max_frame_ms (a '
-                                  'still camera waits for them)', lo=1, hi=10_000_000)
+                                  'still camera waits for them; at most events_per_frame)',
+                                  lo=1, hi=10_000_000)
+    refill: bool = param(True, 'a packet closed by max_frame_ms is binned together with '
+                         'the events before it, up to events_per_frame: every frame holds the '
+                         'newest events_per_frame events (consecutive frames then overlap), so '
+                         'a slow scene gets frames at a steady rate that are as full as a '
+                         'whole packet; not under the limit of the gyro (imu.max_frame_ms), '
+                         'where the gyro carries the motion between thin frames; false: such a '
+                         'packet is binned alone')
     calib: CalibrationConfig = nested(CalibrationConfig, 'sensor intrinsics for rectify')
     imu: FramingImuConfig = nested(FramingImuConfig, 'packets with a fused gyro')
 
@@ -127,12 +135,6 @@ class PacketizerConfig:
                 and (self.downsample == 0.0 or self.downsample >= 1.0)):
             raise ConfigError(f'PacketizerConfig.downsample = {self.downsample}: set a factor '
                               '>= 1, or 0 for frames of about 96x72 from any sensor')
-        for name, ms in (('max_frame_ms', self.max_frame_ms),
-                         ('imu.max_frame_ms', self.imu.max_frame_ms if self.imu.enabled else 0)):
-            if ms > 0 and self.min_frame_events > self.events_per_frame:
-                raise ConfigError(f'min_frame_events ({self.min_frame_events}) is above '
-                                  f'events_per_frame ({self.events_per_frame}): no packet '
-                                  f'could close by time; lower min_frame_events or set {name} 0')
 
     @property
     def frame_ms(self) -> float:
@@ -146,6 +148,19 @@ class PacketizerConfig:
     def max_frame_ns(self) -> int:
         """:attr:`frame_ms` in int64 nanoseconds (0: packets close by count only)."""
         return round(self.frame_ms * 1e6)
+
+    @property
+    def min_events(self) -> int:
+        """The fewest events of a packet closed by time: ``min_frame_events``, at most
+        ``events_per_frame`` (with fewer events per frame every packet closes by count)."""
+        return min(self.min_frame_events, self.events_per_frame)
+
+    @property
+    def refills(self) -> bool:
+        """Whether packets closed by time are refilled (``refill``, with ``max_frame_ms`` in
+        force: not when the gyro's ``imu.max_frame_ms`` replaces it)."""
+        gyro_limit = self.imu.enabled and self.imu.max_frame_ms > 0
+        return self.refill and self.max_frame_ms > 0 and not gyro_limit
 
     @property
     def max_per_window(self) -> float:
@@ -174,13 +189,14 @@ class PacketizerConfig:
 
 def paper_framing(**overrides: Any) -> PacketizerConfig:
     """The paper's packetizer (plain binning: packets of ``events_per_frame`` events, no
-    noise-floor threshold, no time limit with the gyro, no event-rate cap, downsample 2.5), the
-    defaults of the first rounds, with ``overrides`` (field values) on top; the defaults add the
-    noise floor, the rate cap and the auto downsample of the validated network
+    noise-floor threshold, no time limit, no event-rate cap, downsample 2.5), the defaults of
+    the first rounds, with ``overrides`` (field values) on top; the defaults add the noise
+    floor, the rate cap, the refilled 100 ms time limit and the auto downsample of the
+    validated network
     (``hrn_vo_ros.core.hrn.config.PAPER_NETWORK`` is the resonator's counterpart)."""
     imu = overrides.pop('imu', FramingImuConfig(max_frame_ms=0.0))
     fields = {'noise_floor_hz': 0.0, 'min_frame_events': 500, 'downsample': 2.5,
-              'max_frame_hz': 0.0, **overrides}
+              'max_frame_hz': 0.0, 'max_frame_ms': 0.0, 'refill': False, **overrides}
     return PacketizerConfig(imu=imu, **fields)
 
 

@@ -130,8 +130,10 @@ def test_time_capped_packet_ends_by_hand() -> None:
     assert packet_ends(np.array([0, 1, 2, ms, ms], np.int64), cfg).tolist() == [3]
     # Off: fixed counts.
     assert packet_ends(t, paper_framing(events_per_frame=5)).tolist() == [5, 10, 15]
-    with pytest.raises(ConfigError, match='min_frame_events'):
-        paper_framing(events_per_frame=10, min_frame_events=11, max_frame_ms=1.0)
+    # min_frame_events above events_per_frame: every packet closes by count
+    big = paper_framing(events_per_frame=5, min_frame_events=11, max_frame_ms=1.0)
+    assert big.min_events == 5
+    assert packet_ends(t, big).tolist() == [5, 10, 15]
 
 
 def test_imu_packets_close_by_their_own_limit() -> None:
@@ -149,11 +151,13 @@ def test_imu_packets_close_by_their_own_limit() -> None:
     # The limit only applies with the gyro fused; 0 keeps max_frame_ms.
     assert replace(cfg, imu=replace(imu, enabled=False)).frame_ms == 0.0
     assert replace(cfg, max_frame_ms=2.0, imu=replace(imu, max_frame_ms=0.0)).frame_ms == 2.0
-    with pytest.raises(ConfigError, match='imu.max_frame_ms'):
-        paper_framing(events_per_frame=5, min_frame_events=6, imu=imu)
-    # the gyro's limit (on by default, 100 ms) is checked only with the gyro fused
-    assert PacketizerConfig(events_per_frame=100).imu.max_frame_ms == 100.0
-    paper_framing(events_per_frame=5, min_frame_events=6, imu=replace(imu, enabled=False))
+    # min_frame_events above events_per_frame: the gyro's packets close by count as well
+    assert packet_ends(t, paper_framing(events_per_frame=3, min_frame_events=6,
+                                        imu=imu)).tolist() == [3, 6, 9]
+    # the defaults: 100 ms with and without the gyro, refilled only without it
+    d = PacketizerConfig(events_per_frame=100)
+    assert d.imu.max_frame_ms == d.max_frame_ms == 100.0 and d.refills
+    assert not replace(d, imu=replace(d.imu, enabled=True)).refills
 
 
 def test_time_capped_frames_by_hand() -> None:
@@ -171,6 +175,83 @@ def test_time_capped_frames_by_hand() -> None:
     frames = Packetizer(cfg).push(ev)
     assert [(f.t_first_ns, f.t_last_ns, f.n_events) for f in frames] == [(100, 200, 2),
                                                                             (1300, 1500, 3)]
+
+
+def test_refilled_frames_by_hand() -> None:
+    # Packets of 3 events or 1 us; with refill a packet closed by time is binned with the
+    # events before it, up to 3 events in all.
+    cfg = paper_framing(events_per_frame=3, sensor_width=20, sensor_height=10, downsample=2.0,
+                        max_frame_ms=0.001, min_frame_events=1, refill=True)
+    ev = EventArray.from_arrays(np.array([100, 200, 300, 2000, 4000, 4100, 4200, 4300, 9000]),
+                                np.array([0, 2, 4, 6, 8, 10, 12, 14, 16]), np.zeros(9, np.int64),
+                                np.zeros(9, np.int64))
+    # packets: [0, 3) by count; [3, 4) by time (the event at 4000 is past 2000 + 1000);
+    # [4, 7) by count; [7, 8) by time (9000). Frames: [0, 3), [1, 4), [4, 7), [5, 8).
+    t, img = frames_from_events(ev, cfg)
+    assert t.tolist() == [200, 200 + (2000 - 200) // 2, 4100, 4100 + (4300 - 4100) // 2]
+    cols = [np.flatnonzero(im[0]).tolist() for im in img]
+    assert cols == [[0, 1, 2], [1, 2, 3], [4, 5, 6], [5, 6, 7]]
+    assert img.sum() == 12
+    frames = Packetizer(cfg).push(ev)
+    assert [(f.t_first_ns, f.t_last_ns, f.n_events) for f in frames] == [
+        (100, 300, 3), (200, 2000, 3), (4000, 4200, 3), (4100, 4300, 3)]
+    # without refill the time-closed packets are binned alone; without a time limit refill
+    # changes nothing
+    plain = frames_from_events(ev, replace(cfg, refill=False))[1]
+    assert [np.flatnonzero(im[0]).tolist() for im in plain] == [[0, 1, 2], [3], [4, 5, 6], [7]]
+    t0, i0 = frames_from_events(ev, replace(cfg, max_frame_ms=0.0))
+    t1, i1 = frames_from_events(ev, replace(cfg, max_frame_ms=0.0, refill=False))
+    assert t0.tolist() == t1.tolist() == [200, 3050, 6600] and np.array_equal(i0, i1)
+    # under the gyro's own limit packets are binned alone; a gyro that keeps max_frame_ms
+    # (imu.max_frame_ms 0) keeps the refill
+    gyro = replace(cfg, imu=FramingImuConfig(enabled=True, max_frame_ms=0.001))
+    assert not gyro.refills and cfg.refills
+    assert [np.flatnonzero(im[0]).tolist() for im in frames_from_events(ev, gyro)[1]] == [
+        [0, 1, 2], [3], [4, 5, 6], [7]]
+    same = replace(cfg, imu=FramingImuConfig(enabled=True, max_frame_ms=0.0))
+    assert same.refills and np.array_equal(frames_from_events(ev, same)[1], img)
+    # the first packet of a stream has nothing before it: a short window
+    first = frames_from_events(ev[3:], cfg)
+    assert [np.flatnonzero(im[0]).tolist() for im in first[1]] == [[3], [4, 5, 6], [5, 6, 7]]
+
+
+def test_refilled_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
+    gaps = np.concatenate([rng.integers(0, 3000, 6000), rng.integers(0, 400_000, 2000),
+                           np.zeros(300, np.int64), rng.integers(0, 3000, 5000),
+                           rng.integers(0, 200_000, 3000)])
+    t = np.cumsum(gaps).astype(np.int64) + 10**9
+    n = len(t)
+    ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                rng.integers(0, 2, n))
+    cfg = paper_framing(events_per_frame=1000, max_frame_ms=50.0, min_frame_events=20,
+                        refill=True)
+    t_ref, img_ref = frames_from_events(ev, cfg)
+    ends = packet_ends(ev.t, cfg)
+    sizes = np.diff(ends, prepend=0)
+    assert (sizes < 1000).sum() >= 10           # packets closed by time
+    # every frame holds the 1000 events before its packet's end (the first ones fewer)
+    starts = np.maximum(ends - 1000, 0)
+    assert t_ref.tolist() == (t[starts] + (t[ends - 1] - t[starts]) // 2).tolist()
+    for i in (0, int(np.argmin(sizes)), len(ends) - 1):
+        ref = np.zeros((72, 96), np.uint8)
+        e = EventArray.from_arrays(t[starts[i]:ends[i]], ev.x[starts[i]:ends[i]],
+                                   ev.y[starts[i]:ends[i]], ev.p[starts[i]:ends[i]])
+        ref[(e.y * 2 + 1) // 5, (e.x * 2 + 1) // 5] = 1      # floor((x + 0.5) / 2.5)
+        np.testing.assert_array_equal(img_ref[i], ref)
+    for _ in range(2):                          # a reset forgets the events before it
+        pk = Packetizer(cfg)
+        cuts = np.sort(rng.choice(np.arange(1, n), 150, replace=False))
+        cuts = np.concatenate([[0], cuts, [n]])
+        frames = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            frames += pk.push(ev[a:b])
+        assert [f.t_ns for f in frames] == t_ref.tolist()
+        np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
+        assert [f.n_events for f in frames] == (ends - starts).tolist()
+        pk.reset()
+        again = pk.push(ev[int(ends[5]):])
+        t_tail = frames_from_events(ev[int(ends[5]):], cfg)[0]
+        assert [f.t_ns for f in again] == t_tail.tolist()
 
 
 def test_time_capped_streaming_equals_batch_for_any_split(rng: np.random.Generator) -> None:
