@@ -224,8 +224,8 @@ class _Binner:
         npx = self.h * self.w
         n_packets = len(ends)
         sizes = ends - starts
-        if n_packets and int(starts[0]) == 0 and np.array_equal(starts[1:], ends[:-1]):
-            flat = pix[:int(ends[-1])].astype(np.intp)      # consecutive: no gather
+        if n_packets and np.array_equal(starts[1:], ends[:-1]):    # consecutive: no gather
+            flat = pix[int(starts[0]):int(ends[-1])].astype(np.intp)
         else:                       # overlapping windows: gather each window's events
             idx = np.arange(int(sizes.sum()), dtype=np.intp)
             idx += np.repeat(starts - (np.cumsum(sizes) - sizes), sizes)
