@@ -14,6 +14,7 @@ from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import distort_points, rectified_pixels, undistort_points
 from hrn_vo_ros.core.events.frames import (
     downsample_lut,
+    EventFrame,
     frames_from_events,
     packet_ends,
     Packetizer,
@@ -177,6 +178,18 @@ def test_time_capped_frames_by_hand() -> None:
                                                                             (1300, 1500, 3)]
 
 
+def push_split(pk: Packetizer, ev: EventArray, rng: np.random.Generator, n_cuts: int
+               ) -> list[EventFrame]:
+    """The frames of ``ev`` pushed into ``pk`` in ``n_cuts + 1`` batches split at random."""
+    n = len(ev)
+    cuts = np.sort(rng.choice(np.arange(1, n), n_cuts, replace=False))
+    cuts = np.concatenate([[0], cuts, [n]])
+    frames: list[EventFrame] = []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        frames += pk.push(ev[a:b])
+    return frames
+
+
 def test_refilled_frames_by_hand() -> None:
     # Packets of 3 events or 1 us; with refill a packet closed by time is binned with the
     # events before it, up to 3 events in all.
@@ -240,11 +253,7 @@ def test_refilled_streaming_equals_batch_for_any_split(rng: np.random.Generator)
         np.testing.assert_array_equal(img_ref[i], ref)
     for _ in range(2):                          # a reset forgets the events before it
         pk = Packetizer(cfg)
-        cuts = np.sort(rng.choice(np.arange(1, n), 150, replace=False))
-        cuts = np.concatenate([[0], cuts, [n]])
-        frames = []
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            frames += pk.push(ev[a:b])
+        frames = push_split(pk, ev, rng, 150)
         assert [f.t_ns for f in frames] == t_ref.tolist()
         np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
         assert [f.n_events for f in frames] == (ends - starts).tolist()
@@ -269,11 +278,7 @@ def test_time_capped_streaming_equals_batch_for_any_split(rng: np.random.Generat
     sizes = np.diff(packet_ends(ev.t, cfg), prepend=0)
     assert sizes.min() >= 200 and sizes.max() == 1000 and (sizes < 1000).sum() > 10
     pk = Packetizer(cfg)
-    cuts = np.sort(rng.choice(np.arange(1, n), 200, replace=False))
-    cuts = np.concatenate([[0], cuts, [n]])
-    frames = []
-    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-        frames += pk.push(ev[a:b])
+    frames = push_split(pk, ev, rng, 200)
     assert [f.t_ns for f in frames] == t_ref.tolist()
     np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
     assert [f.n_events for f in frames] == sizes.tolist()
