@@ -369,6 +369,33 @@ def test_rate_capped_packetizer_keeps_an_even_share_and_counts_the_rest(
                                      for d in lone.diags))
 
 
+def test_a_slow_stream_gets_refilled_frames_and_counts_them(rng: np.random.Generator) -> None:
+    """max_frame_ms 50 and refill as ROS parameters, a stream of one event per ms: packets
+    close by time after 50 events and are binned with the 450 before them. The node's frames
+    are the offline packetizer's, and /diagnostics counts the frames closed by time."""
+    with lone_packetizer(Parameter('max_frame_ms', value=50.0),
+                         Parameter('min_frame_events', value=20),
+                         Parameter('refill', value=True)) as lone:
+        n = 1500
+        t = 1_000_000 + np.arange(n, dtype=np.int64) * 1_000_000
+        ev = EventArray.from_arrays(t, rng.integers(0, 240, n), rng.integers(0, 180, n),
+                                    np.ones(n, np.uint8))
+        cuts = [0, 333, 334, 1000, n]
+        for i, (a, b) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+            lone.ev_pub.publish(packet(ev[a:b], seq=i))
+        offline = Packetizer(paper_framing(events_per_frame=PER_FRAME, max_frame_ms=50.0,
+                                           min_frame_events=20, refill=True))
+        ref = offline.push(ev)
+        # 29 packets of 50 events (the 30th still open); from the 10th on each frame holds 500
+        assert len(ref) == offline.by_time == 29
+        assert [f.n_events for f in ref] == [50 * (i + 1) for i in range(10)] + [500] * 19
+        assert lone.wait(lambda: len(lone.frames) >= len(ref))
+        got = [ros_msgs.image_to_frame(m) for m in lone.frames]
+        assert [tt for tt, _ in got] == [f.t_ns for f in ref]
+        assert all(np.array_equal(img, f.image) for (_, img), f in zip(got, ref, strict=True))
+        assert lone.wait(lambda: any(d.get('frames_by_time') == '29' for d in lone.diags))
+
+
 def test_a_shallow_frame_queue_drops_the_oldest_and_counts_them() -> None:
     """frames_depth 2 and a resonator that does not take frames for a while (here: not spun):
     only the newest two of 30 are processed, the 28 before them are counted as dropped (the

@@ -385,6 +385,7 @@ class Packetizer:
         self._hist_t: NDArray[np.int64] = np.empty(0, np.int64)
         self._last_t: int | None = None
         self._outside = 0
+        self._by_time = 0
         self._filter = denoiser(self.cfg)
         self._probe = background(self.cfg)
         self._cap = rate_cap(self.cfg)
@@ -399,6 +400,13 @@ class Packetizer:
     def outside(self) -> int:
         """Events so far whose rectified position fell outside the frame (not binned)."""
         return self._outside
+
+    @property
+    def by_time(self) -> int:
+        """Frames so far whose packet closed by its time limit with fewer than
+        ``events_per_frame`` events (refilled when :attr:`PacketizerConfig.refills`): a slow or
+        sparse scene."""
+        return self._by_time
 
     @property
     def denoised(self) -> int:
@@ -514,6 +522,8 @@ class Packetizer:
         self._pending = rest
         if not len(ends):
             return []
+        self._by_time += int(np.count_nonzero(np.diff(ends, prepend=0)
+                                              < self.cfg.events_per_frame))
         if self.cfg.refills:                  # the binned events before these packets come first
             k, h = self.cfg.events_per_frame, len(self._hist_t)
             pix = np.concatenate([self._hist_pix, pix[:used]])

@@ -332,6 +332,7 @@ class PacketStream:
             ('events_outside_frame', 0 if p is None else p.outside),
             ('events_denoised', 0 if p is None else p.denoised),
             ('events_capped', 0 if p is None else p.capped),
+            ('frames_by_time', 0 if p is None else p.by_time),
             ('rate_cap_share', '' if p is None else f'{p.cap_share:.3f}'),
             ('background_hz', '' if p is None or p.background_hz is None
              else f'{p.background_hz:.3f}'),

@@ -205,9 +205,11 @@ def test_refilled_frames_by_hand() -> None:
     cols = [np.flatnonzero(im[0]).tolist() for im in img]
     assert cols == [[0, 1, 2], [1, 2, 3], [4, 5, 6], [5, 6, 7]]
     assert img.sum() == 12
-    frames = Packetizer(cfg).push(ev)
+    pk = Packetizer(cfg)
+    frames = pk.push(ev)
     assert [(f.t_first_ns, f.t_last_ns, f.n_events) for f in frames] == [
         (100, 300, 3), (200, 2000, 3), (4000, 4200, 3), (4100, 4300, 3)]
+    assert pk.by_time == 2                      # the packets [3, 4) and [7, 8)
     # without refill the time-closed packets are binned alone; without a time limit refill
     # changes nothing
     plain = frames_from_events(ev, replace(cfg, refill=False))[1]
@@ -283,6 +285,7 @@ def test_time_capped_streaming_equals_batch_for_any_split(rng: np.random.Generat
     np.testing.assert_array_equal(np.stack([f.image for f in frames]), img_ref)
     assert [f.n_events for f in frames] == sizes.tolist()
     assert pk.pending == n - int(sizes.sum())
+    assert pk.by_time == int((sizes < 1000).sum())
     # A packet closed by time (fewer than events_per_frame, more than min_frame_events) holds
     # its window's events: its last one inside, the next packet's first one past it.
     short = sizes < 1000
