@@ -1,10 +1,11 @@
 """``packetizer_node``: event packets in, binary event frames out.
 
 Subscribes ``~/events`` (``event_camera_msgs/EventPacket``, mono or evt3; BEST_EFFORT depth 1000
-as the drivers publish, RELIABLE with ``events_reliable``), bins fixed-count packets of events
-with `core.events.frames.Packetizer` (a frame may span many messages, a message may
-complete many frames) and publishes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, ``frame_id``
-from a parameter). Sequence gaps, malformed packets and rates go to ``/diagnostics``.
+as the drivers publish, RELIABLE with ``events_reliable``), bins fixed-count (or time-capped,
+refilled) packets of events with `core.events.frames.Packetizer` (a frame may span many
+messages, a message may complete many frames) and publishes ``~/frames``
+(``sensor_msgs/Image`` mono8 0/255, ``frame_id`` from a parameter). Sequence gaps, malformed
+packets and rates go to ``/diagnostics``.
 
 Clocks (``core/clock.py``, docs/demo.md "Clocks"): a frame's stamp is its packet midpoint mapped
 from the sensor clock to the **header clock** of the event packets (ROS time for a live driver;
