@@ -156,10 +156,9 @@ def packet_ends(t: NDArray[np.int64], cfg: PacketizerConfig) -> NDArray[np.intp]
     return np.asarray(ends, dtype=np.intp)
 
 
-def frame_starts(ends: NDArray[np.intp], cfg: PacketizerConfig, start: int = 0
-                 ) -> NDArray[np.intp]:
+def frame_starts(ends: NDArray[np.intp], cfg: PacketizerConfig) -> NDArray[np.intp]:
     """Start indices of the frames of the packets ending at ``ends`` (the first packet starts
-    at ``start``): each packet's own first event, or when packets are refilled
+    at 0): each packet's own first event, or when packets are refilled
     (:attr:`PacketizerConfig.refills`) the ``events_per_frame``-th event before its end (at
     least 0), so that a packet closed early by time is binned with the events before it.
 
@@ -168,7 +167,7 @@ def frame_starts(ends: NDArray[np.intp], cfg: PacketizerConfig, start: int = 0
     """
     if cfg.refills:
         return np.maximum(ends - cfg.events_per_frame, 0).astype(np.intp)
-    return np.concatenate([[start], ends[:-1]]).astype(np.intp)
+    return np.concatenate([[0], ends[:-1]]).astype(np.intp)
 
 
 def _packet_times(t: NDArray[np.int64], starts: NDArray[np.intp], ends: NDArray[np.intp]
@@ -524,12 +523,14 @@ class Packetizer:
             return []
         self._by_time += int(np.count_nonzero(np.diff(ends, prepend=0)
                                               < self.cfg.events_per_frame))
-        if self.cfg.refills:                  # the binned events before these packets come first
+        if self.cfg.refills:
             k, h = self.cfg.events_per_frame, len(self._hist_t)
-            pix = np.concatenate([self._hist_pix, pix[:used]])
-            t = np.concatenate([self._hist_t, t[:used]])
-            ends = ends + h
-            self._hist_pix, self._hist_t = pix[-k:].copy(), t[-k:].copy()
+            if h and int(ends[0]) < k:        # the first window reaches into the binned events
+                pix = np.concatenate([self._hist_pix, pix[:used]])
+                t = np.concatenate([self._hist_t, t[:used]])
+                ends = ends + h
+            e = int(ends[-1])                 # the newest k binned events, for the next call
+            self._hist_pix, self._hist_t = pix[max(e - k, 0):e].copy(), t[max(e - k, 0):e].copy()
         starts = frame_starts(ends, self.cfg)
         first, last, mid = _packet_times(t, starts, ends)
         images = self._b.images(pix, starts, ends, self.noisy)
