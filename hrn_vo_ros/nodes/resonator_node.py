@@ -1,29 +1,17 @@
 """``resonator_node``: binary event frames in, odometry out (the HRN as an odometry source).
 
-Subscribes ``~/frames`` (``sensor_msgs/Image`` mono8 0/255, RELIABLE, keep last
-``frames_depth``: when it falls behind the oldest waiting frame is dropped, counted from the
-publisher's sequence numbers as ``seq_gaps``, WARN) and, with the resonator's
-``imu.enabled``, ``~/imu`` (``sensor_msgs/Imu``, best effort depth 1000; frames wait, bounded,
-until a gyro sample at or after their time arrived). With ``focal_px`` 0 it takes the focal
-length from the first ``~/camera_info`` (the camera's ``sensor_msgs/CameraInfo``, latched or
-not): fx / D in frame pixels, D = max(sensor / frame size per axis), for the odometry too; a
-gyro or sphere correction that needs it stays off until then (WARN). Publishes, stamped with
-the frame time:
-``~/readout`` (raw h, v, r [, z], quality and state code, ``sensor_msgs/JointState``),
-``~/pose`` (PoseStamped) and ``~/odom`` (nav_msgs/Odometry with covariance) in
-``odom_frame_id``, ``/tf`` with ``publish_tf``, ``~/map_image`` and ``~/readout_image`` (mono8,
-at most ``map_image_rate_hz``), ``/tf_static`` (``publish_static_tf``: ``base_frame_id`` →
-``camera_frame_id`` from ``odometry.mount_*``, with ``imu_frame_id`` also ``camera_frame_id`` →
-``imu_frame_id`` from ``imu.camera_from_imu``) and ``/diagnostics`` (WARN while degraded or
-after a rejected message or a time reset, ERROR while lost or while frames of another size than
-``width`` x ``height`` arrive, the message naming the values to set; with ``frame_size:
-frames`` the resonator takes the size of the frames instead, restarting tracking when it changes).
+Subscribes ``~/frames`` (mono8 0/255, keep last ``frames_depth``, drops counted), with
+``imu.enabled`` ``~/imu`` (frames wait, bounded, for a gyro sample at or after their time) and,
+with ``focal_px`` 0, the first ``~/camera_info`` (fx / D in frame pixels). Publishes, stamped
+with the frame time, ``~/readout`` (JointState), ``~/pose``, ``~/odom`` (covariance growing as
+quality falls), ``/tf`` (``publish_tf``), ``/tf_static`` (``publish_static_tf``), the map images
+and ``/diagnostics`` (WARN while degraded, ERROR while lost or on frames of another size); the
+topics, frames and levels in full: docs/demo.md.
 
-The logic is ``core/live.py`` (stamp resets beyond ``clock_tolerance_s``, frame sizes, per frame
-the step ``hrn-vo run`` takes) and ``core/odometry/publish.py`` (covariances growing as quality
-falls, ``lost_variance`` while lost). Parameters: the fields of ``ResonatorConfig``,
-``ResonatorNodeConfig`` and, under ``backend.``, ``BackendConfig``; ``loihi_node`` is this node
-preset to ``backend.name: spiking``.
+The logic is ``core/live.py`` and ``core/odometry/publish.py``; this node translates messages
+and parameters (the fields of ``ResonatorConfig``, ``ResonatorNodeConfig`` and, under
+``backend.``, ``BackendConfig``); ``loihi_node`` is this node preset to ``backend.name:
+spiking``.
 """
 
 from __future__ import annotations
