@@ -45,7 +45,10 @@ KEY=VALUE`` overrides resonator settings of the HRN methods (as ``hrn-vo run --s
 ``--pset KEY=VALUE`` packetizer settings of every method, ``--sset KEY=VALUE`` the spiking
 method's emulation settings (``SpikingConfig``). ``--trace DIR`` writes, per
 sequence and method, ``DIR/<kind>_<seed>_<method>.csv`` with the per-sample time, error,
-state and quality (the error-vs-time of the failures). ``--config FILE`` runs every kind with
+state and quality (the error-vs-time of the failures) and ``.png`` beside it: the protocol's
+estimate against the ground truth per axis and the error with the states shaded
+(:func:`hrn_vo_ros.io.plots.plot_evaluation`; a loss inside the calibration segment bends every
+axis, see silent losses above). ``--config FILE`` runs every kind with
 that params file instead of ``config/<kind>.yaml`` (``config/live.yaml`` on the rotation
 family: a camera without calibration, so no rectification and no sphere correction).
 ``--sensor WIDTH`` renders every draw on a sensor that many pixels wide with the same field of
@@ -110,6 +113,7 @@ from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
 from hrn_vo_ros.errors import DatasetError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
+from hrn_vo_ros.io.plots import plot_evaluation  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs  # noqa: E402
 
 KINDS = ('rotation', 'translation', 'arm')
@@ -347,6 +351,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         silent_tc: int | None = None
         late_tc: int | None = None
         scale = lag = math.nan
+        traced: tuple[Any, np.ndarray | None, np.ndarray] | None = None
         try:
             est, states, quality = _run(method, kind, seq, t, imgs)
             res = evaluate(seq.groundtruth, est, kind)
@@ -371,14 +376,21 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
                 late = late_flags(st, eps)
                 silent_tc, late_tc = silent_tracking_calibrated(seq, est, kind, res.lag_s,
                                                        list(states or ()), keep, st)
-            if trace:
-                _trace(Path(trace) / f'{kind}_{seed}_{method}.csv', s.t_s, s.err, st_all,
-                       quality[idx])
+            traced = res, st_all, quality[idx]
         except Exception as err:      # a failed evaluation counts as lost
             note = f'{type(err).__name__}: {str(err)[:80]}'
+        wall = time.perf_counter() - t0
+        if trace and traced is not None:    # (outside the try: a failed write is no loss)
+            res, st_all, q = traced
+            stem = Path(trace) / f'{kind}_{seed}_{method}'
+            _trace(stem.with_suffix('.csv'), res.series.t_s, res.series.err, st_all, q)
+            plot_evaluation(res, stem.with_suffix('.png'),
+                            states=None if st_all is None else [str(x) for x in st_all],
+                            title=f'{kind} {seed}, {method}: {_fmt(med, kind)}'
+                                  f'{" LOST" if lost else ""}\n{d.summary()}')
         reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
-                       len(eps), silent, late, reloc, time.perf_counter() - t0, note,
+                       len(eps), silent, late, reloc, wall, note,
                        d.summary(), scale, silent_tc, late_tc, lag))
     return out
 
@@ -621,7 +633,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--csv', type=Path, default=None, help='write the per-sequence rows here')
     p.add_argument('--plot', type=Path, default=None, help='write an error-distribution PNG')
     p.add_argument('--trace', type=Path, default=None,
-                   help='write per-sequence error/state/quality CSVs into this folder')
+                   help='write per-sequence error/state/quality CSVs and plots (estimate '
+                        'against ground truth, states shaded) into this folder')
     p.add_argument('--cache', type=Path, default=None,
                    help='keep the simulated frames here and reuse them')
     p.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
@@ -721,6 +734,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.plot is not None:
         plot(rows, args.kinds, args.methods, args.plot)
         print(f'plot -> {args.plot}')
+    if args.trace is not None:
+        print(f'traces -> {args.trace}: {len(list(args.trace.glob("*.csv")))} CSV, '
+              f'{len(list(args.trace.glob("*.png")))} PNG (<kind>_<seed>_<method>)')
     return 0
 
 
