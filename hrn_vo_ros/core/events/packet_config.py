@@ -137,12 +137,17 @@ class PacketizerConfig:
                               '>= 1, or 0 for frames of about 96x72 from any sensor')
 
     @property
+    def gyro_limit(self) -> bool:
+        """Whether the gyro's own packet time limit is in force (``imu.enabled`` and
+        ``imu.max_frame_ms`` set): it replaces ``max_frame_ms`` and its packets are not
+        refilled."""
+        return self.imu.enabled and self.imu.max_frame_ms > 0
+
+    @property
     def frame_ms(self) -> float:
-        """The packet time limit in force: ``imu.max_frame_ms`` when ``imu.enabled`` and it is
-        set, else ``max_frame_ms`` (0: packets close by count only)."""
-        if self.imu.enabled and self.imu.max_frame_ms > 0:
-            return self.imu.max_frame_ms
-        return self.max_frame_ms
+        """The packet time limit in force: ``imu.max_frame_ms`` under :attr:`gyro_limit`, else
+        ``max_frame_ms`` (0: packets close by count only)."""
+        return self.imu.max_frame_ms if self.gyro_limit else self.max_frame_ms
 
     @property
     def max_frame_ns(self) -> int:
@@ -159,8 +164,7 @@ class PacketizerConfig:
     def refills(self) -> bool:
         """Whether packets closed by time are refilled (``refill``, with ``max_frame_ms`` in
         force: not when the gyro's ``imu.max_frame_ms`` replaces it)."""
-        gyro_limit = self.imu.enabled and self.imu.max_frame_ms > 0
-        return self.refill and self.max_frame_ms > 0 and not gyro_limit
+        return self.refill and self.max_frame_ms > 0 and not self.gyro_limit
 
     @property
     def max_per_window(self) -> float:
