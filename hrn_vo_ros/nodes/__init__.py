@@ -2,7 +2,7 @@
 
 A node process spends its first second importing (numpy, scipy, rclpy); a stop signal then
 would end it with a KeyboardInterrupt traceback (SIGINT) or killed (SIGTERM), before
-``rclpy.init`` and :func:`hrn_vo_ros.nodes.common.run` install their own handling. When this
+``rclpy.init`` and :func:`hrn_vo_ros.nodes.process.run` install their own handling. When this
 package is imported on the way to running a node (a node executable, or ``python -m
 hrn_vo_ros.nodes.<node>``), both signals end the process at once with exit 0 until then:
 nothing has started, so there is nothing to clean up. Importing it anywhere else (tests, the

@@ -31,7 +31,7 @@ from rosgraph_msgs.msg import Clock
 from hrn_vo_ros.errors import BagError, ConfigError, HrnVoError
 from hrn_vo_ros.io import bags, ros_msgs
 from hrn_vo_ros.io.playback import play, PlaybackConfig, publish_retrying
-from hrn_vo_ros.nodes.common import default_stop_signals
+from hrn_vo_ros.nodes.process import default_stop_signals
 
 EVENT_TYPES = (bags.EVENT_PACKET, bags.DVS_EVENT_ARRAY)
 LINGER_S = 0.5  # after the last record, so that best-effort samples leave the process

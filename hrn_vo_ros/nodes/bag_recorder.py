@@ -22,8 +22,9 @@ from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import RecorderNodeConfig
 from hrn_vo_ros.io.recording import BagRecorder
-from hrn_vo_ros.nodes.common import publish_diagnostics, qos, run
+from hrn_vo_ros.nodes.common import publish_diagnostics, qos
 from hrn_vo_ros.nodes.params import declare_config
+from hrn_vo_ros.nodes.process import run
 from hrn_vo_ros.nodes.stats import NodeStats
 
 

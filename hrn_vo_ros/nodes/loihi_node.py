@@ -20,7 +20,7 @@ from sensor_msgs.msg import Image
 
 from hrn_vo_ros.core.hrn.backends import SpikingDiagnostics
 from hrn_vo_ros.io import ros_msgs
-from hrn_vo_ros.nodes.common import run
+from hrn_vo_ros.nodes.process import run
 from hrn_vo_ros.nodes.resonator_node import ResonatorNode
 
 ACCOUNT_KEYS = ('spikes', 'synops', 'neuron_updates', 'neurons', 'cores', 'energy_uJ',

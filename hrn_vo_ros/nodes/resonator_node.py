@@ -41,9 +41,10 @@ from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
-from hrn_vo_ros.nodes.common import CameraInfoInput, publish_diagnostics, qos, Rejects, run, worst
+from hrn_vo_ros.nodes.common import CameraInfoInput, publish_diagnostics, qos, Rejects, worst
 from hrn_vo_ros.nodes.outputs import OdometryOutputs
 from hrn_vo_ros.nodes.params import declare_config
+from hrn_vo_ros.nodes.process import run
 from hrn_vo_ros.nodes.stats import NodeStats
 
 

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.ros
 # signal surely lands inside them (the real ones take milliseconds).
 SLOW_NODE = """
 import sys, time
-from hrn_vo_ros.nodes.common import run
+from hrn_vo_ros.nodes.process import run
 from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
 
 class Slow(PacketizerNode):
