@@ -54,7 +54,10 @@ family: a camera without calibration, so no rectification and no sphere correcti
 ``--sensor WIDTH`` renders every draw on a sensor that many pixels wide with the same field of
 view (:func:`hrn_vo_ros.core.sim.family.on_sensor`; with a config whose packetizer downsample
 is 0, e.g. ``--sensor 640 --config config/live.yaml``: the family on a 640x480 camera;
-``--sensor 640x360``: its middle rows on a 16:9 sensor, frames of 96x54).
+``--sensor 640x360``: its middle rows on a 16:9 sensor, frames of 96x54). ``--preset
+shapes_rotation`` runs the family's fixed preset instead of randomized draws (60 s like the
+Event Camera Dataset's sequence: the real DAVIS240C calibration, a shapes poster 1 m away, the
+speed rising 9x to 650 deg/s at the end; seeds vary only texture, waves and noise).
 
 Examples::
 
@@ -106,6 +109,8 @@ from hrn_vo_ros.core.sim.family import (  # noqa: E402
     draw,
     fresh_seeds,
     on_sensor,
+    preset,
+    PRESETS,
     simulate_draw,
     tuning_seeds,
 )
@@ -165,11 +170,15 @@ CONFIG: dict[str, Path] = {}
 #: ``{'width': W, 'height': H}``: every draw seen by a sensor W pixels wide (H 0: the same
 #: vertical field of view; else H rows, the middle ones; ``--sensor``, ``on_sensor``).
 SENSOR: dict[str, int] = {}
+#: ``{'name': NAME}``: run the family's preset NAME (``--preset``) instead of its draws.
+PRESET: dict[str, str] = {}
 
 
 def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None,
           s_overrides: dict[str, Any] | None = None, config: Path | None = None,
-          sensor: tuple[int, int] | None = None) -> None:
+          sensor: tuple[int, int] | None = None, preset_name: str | None = None) -> None:
+    if preset_name is not None:
+        PRESET['name'] = preset_name
     if sensor is not None:
         SENSOR['width'], SENSOR['height'] = sensor
     OVERRIDES.update(overrides)
@@ -239,14 +248,15 @@ def _frames(kind: str, seed: int, seconds: float, cache: str, imu: bool = False
             if SENSOR else '')
     tag = (''.join(f'_{k}={v}' for k, v in sorted(P_OVERRIDES.items())) + _config_tag(kind)
            + ('_imu' if imu else ''))
-    path = Path(cache) / f'{kind}_{seed}_{seconds:g}{wide}{tag}.pkl' if cache else None
+    name = f'preset-{PRESET["name"]}' if PRESET else kind
+    path = Path(cache) / f'{name}_{seed}_{seconds:g}{wide}{tag}.pkl' if cache else None
     if path is not None and path.exists():
         with open(path, 'rb') as f:
             return tuple(pickle.load(f))
-    d = draw(kind, seed)
+    d = preset(PRESET['name'], seed) if PRESET else draw(kind, seed)
     if SENSOR:
         d = on_sensor(d, SENSOR['width'], SENSOR['height'] or None)
-    raw = Path(cache) / f'{kind}_{seed}_{seconds:g}{wide}_events.pkl' if cache else None
+    raw = Path(cache) / f'{name}_{seed}_{seconds:g}{wide}_events.pkl' if cache else None
     if raw is not None and raw.exists():
         with open(raw, 'rb') as f:
             seq = pickle.load(f)
@@ -625,7 +635,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--kinds', nargs='+', choices=KINDS, default=list(KINDS))
     p.add_argument('--methods', nargs='+', choices=METHODS, default=list(METHODS))
     p.add_argument('-n', type=int, default=30, help='draws per kind (default 30)')
-    p.add_argument('--seconds', type=float, default=15.0, help='per sequence (default 15)')
+    p.add_argument('--seconds', type=float, default=None,
+                   help='per sequence (default 15; with --preset that of the preset, 60 s)')
     p.add_argument('--tuning', action='store_true',
                    help='use the tuning draws (seeds 0-99) instead of the fresh ones (10000+)')
     p.add_argument('--jobs', type=int, default=os.cpu_count() or 1, help='worker processes')
@@ -654,6 +665,10 @@ def main(argv: list[str] | None = None) -> int:
                         'rows, a 16:9 sensor); needs a config whose '
                         'packetizer downsample is 0 (auto) and whose resonator takes the frame '
                         'size (--config config/live.yaml)')
+    p.add_argument('--preset', choices=PRESETS, default=None,
+                   help='run a fixed preset of the family (shapes_rotation: 60 s, real DAVIS240C '
+                        'calibration, speed rising 9x to 650 deg/s) with seeds 0..n-1 (or '
+                        '--seeds) instead of randomized draws; rotation only')
     p.add_argument('--seeds', type=int, nargs='+', default=None,
                    help='run these seeds instead of the first -n of the split')
     p.add_argument('--rows', type=Path, nargs='+', default=None,
@@ -675,9 +690,22 @@ def main(argv: list[str] | None = None) -> int:
             plot(rows, kinds, methods, args.plot)
             print(f'plot -> {args.plot}')
         return 0
+    if args.preset is not None:
+        if args.kinds != ['rotation'] and args.kinds != list(KINDS):
+            print(f'--preset {args.preset} is a rotation sequence: drop --kinds or give '
+                  '--kinds rotation', file=sys.stderr)
+            return 2
+        args.kinds = ['rotation']
+        if args.seconds is None:
+            args.seconds = preset(args.preset).seconds
+    if args.seconds is None:
+        args.seconds = 15.0
     if args.smoke:
         args.n, args.seconds = 1, 6.0
-    seeds = args.seeds or (tuning_seeds(args.n) if args.tuning else fresh_seeds(args.n))
+    if args.preset is not None:
+        seeds = args.seeds or list(range(args.n))
+    else:
+        seeds = args.seeds or (tuning_seeds(args.n) if args.tuning else fresh_seeds(args.n))
     trace = '' if args.trace is None else str(args.trace)
     cache = '' if args.cache is None else str(args.cache)
     over: dict[str, Any] = {}
@@ -701,8 +729,10 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
-    print(f'{len(tasks)} sequences ({args.n} {"tuning" if args.tuning else "fresh"} draws per '
-          f'kind, {args.seconds:g} s), methods {", ".join(args.methods)}, {args.jobs} jobs'
+    what = (f'preset {args.preset} seeds {seeds[0]}..{seeds[-1]}' if args.preset else
+            f'{args.n} {"tuning" if args.tuning else "fresh"} draws per kind')
+    print(f'{len(tasks)} sequences ({what}, {args.seconds:g} s), methods '
+          f'{", ".join(args.methods)}, {args.jobs} jobs'
           + ('' if args.config is None else f', config {args.config}')
           + ('' if args.sensor is None else f', sensor {args.sensor[0]} px wide'
              + (f', {args.sensor[1]} high' if args.sensor[1] else '')),
@@ -710,7 +740,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     rows = []
     ctx = multiprocessing.get_context('spawn')
-    with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config, args.sensor)) as pool:
+    with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config, args.sensor,
+                                     args.preset)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]

@@ -31,3 +31,27 @@ def test_a_csv_without_the_lag_column_reads_as_unknown_lags(tmp_path: Path) -> N
     path.write_text(header + '\nrotation,7,hrn,10.0,1000.0,50.0,0.4,False,0.0,0,0,0,,1.0,,d\n')
     (row,) = robustness.read_rows(path)
     assert row.seed == 7 and math.isnan(row.lag_s) and robustness._odd_lags([row]) == ''
+
+
+def test_a_preset_with_another_kind_is_refused_before_any_work(capsys: pytest.CaptureFixture[str]
+                                                                ) -> None:
+    assert robustness.main(['--preset', 'shapes_rotation', '--kinds', 'translation']) == 2
+    assert '--kinds rotation' in capsys.readouterr().err
+
+
+def test_a_preset_sequence_is_cached_under_its_own_name(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A preset's frames never come from (or go to) the draw of the same seed in the cache."""
+    made: list[object] = []
+
+    def fake_simulate(d: object, seconds: float) -> object:
+        made.append(d)
+        raise RuntimeError('stop after the draw')
+
+    monkeypatch.setattr(robustness, 'simulate_draw', fake_simulate)
+    monkeypatch.setitem(robustness.PRESET, 'name', 'shapes_rotation')
+    with pytest.raises(RuntimeError, match='stop after the draw'):
+        robustness._frames('rotation', 3, 6.0, str(tmp_path))
+    (d,) = made
+    assert d.split == 'preset' and d.seed == 3 and d.seconds == 60.0
+    assert d.calib.fx == pytest.approx(199.092366542)

@@ -76,6 +76,11 @@ CASES = {
                        then=('--rows', '{work}/r.csv', '--plot', '{work}/r.png'),
                        then_expect=('tracked  time ok', 'rotation     hrn', 'plot ->',
                                     'hrn       silent ')),
+    # the 60 s shapes_rotation-like preset, its first 6 s
+    'robustness_preset': Case('bench_robustness.py', ('--preset', 'shapes_rotation', '--smoke',
+                                                      '--methods', 'hrn', '--jobs', '1'),
+                              ('1 sequences (preset shapes_rotation seeds 0..0, 6 s)',
+                               'tracked  time ok', 'rotation     hrn')),
     # one fresh draw, 7 s, its events removed over the first 10-degree turn from 3 s
     'blackout': Case('bench_blackout.py', ('--smoke', '--jobs', '1', '--csv', '{work}.csv'),
                      ('1 rotation draws', 'events removed', 're-localised:', 'median fr',
@@ -86,7 +91,7 @@ CASES = {
                   'per-loop accuracy', 'loop   2:', 'targets: RSS growth', 'soak done'),
                  timeout=240.0),
 }
-SLOW = {'accuracy', 'blackout', 'latency', 'robustness', 'soak'}
+SLOW = {'accuracy', 'blackout', 'latency', 'robustness', 'robustness_preset', 'soak'}
 ROS = {'latency', 'soak'}
 
 
