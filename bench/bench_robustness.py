@@ -64,6 +64,8 @@ Examples::
     scripts/run.sh python bench/bench_robustness.py --smoke
     scripts/run.sh python bench/bench_robustness.py --kinds rotation translation -n 6 \
         --seconds 10 --methods hrn hrn_imu baseline --csv build/robust.csv --plot build/robust.png
+    scripts/run.sh python bench/bench_robustness.py --preset shapes_rotation -n 4 \
+        --methods hrn hrn_imu baseline --cache build/preset
 """
 
 from __future__ import annotations
