@@ -693,6 +693,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f'plot -> {args.plot}')
         return 0
     if args.preset is not None:
+        if args.tuning:
+            print(f'--preset {args.preset} seeds are neither tuning nor fresh draws (none of them '
+                  'was tuned on): drop --tuning', file=sys.stderr)
+            return 2
         if args.kinds != ['rotation'] and args.kinds != list(KINDS):
             print(f'--preset {args.preset} is a rotation sequence: drop --kinds or give '
                   '--kinds rotation', file=sys.stderr)

@@ -33,10 +33,12 @@ def test_a_csv_without_the_lag_column_reads_as_unknown_lags(tmp_path: Path) -> N
     assert row.seed == 7 and math.isnan(row.lag_s) and robustness._odd_lags([row]) == ''
 
 
-def test_a_preset_with_another_kind_is_refused_before_any_work(capsys: pytest.CaptureFixture[str]
+def test_a_preset_with_another_kind_or_split_is_refused(capsys: pytest.CaptureFixture[str]
                                                                 ) -> None:
     assert robustness.main(['--preset', 'shapes_rotation', '--kinds', 'translation']) == 2
     assert '--kinds rotation' in capsys.readouterr().err
+    assert robustness.main(['--preset', 'shapes_rotation', '--tuning']) == 2
+    assert 'drop --tuning' in capsys.readouterr().err
 
 
 def test_a_preset_sequence_is_cached_under_its_own_name(tmp_path: Path,
