@@ -33,8 +33,8 @@ def test_a_csv_without_the_lag_column_reads_as_unknown_lags(tmp_path: Path) -> N
     assert row.seed == 7 and math.isnan(row.lag_s) and robustness._odd_lags([row]) == ''
 
 
-def test_a_preset_with_another_kind_or_split_is_refused(capsys: pytest.CaptureFixture[str]
-                                                                ) -> None:
+def test_a_preset_with_another_kind_or_split_is_refused(
+        capsys: pytest.CaptureFixture[str]) -> None:
     assert robustness.main(['--preset', 'shapes_rotation', '--kinds', 'translation']) == 2
     assert '--kinds rotation' in capsys.readouterr().err
     assert robustness.main(['--preset', 'shapes_rotation', '--tuning']) == 2
