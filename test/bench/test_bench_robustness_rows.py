@@ -8,6 +8,8 @@ import sys
 
 import pytest
 
+from hrn_vo_ros.core.sim.family import Draw
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / 'bench'))
 robustness = pytest.importorskip('bench_robustness')
@@ -44,9 +46,9 @@ def test_a_preset_with_another_kind_or_split_is_refused(
 def test_a_preset_sequence_is_cached_under_its_own_name(tmp_path: Path,
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     """A preset's frames never come from (or go to) the draw of the same seed in the cache."""
-    made: list[object] = []
+    made: list[Draw] = []
 
-    def fake_simulate(d: object, seconds: float) -> object:
+    def fake_simulate(d: Draw, seconds: float) -> object:
         made.append(d)
         raise RuntimeError('stop after the draw')
 
