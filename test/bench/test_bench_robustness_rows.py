@@ -45,7 +45,9 @@ def test_a_preset_with_another_kind_or_split_is_refused(
 
 def test_a_preset_sequence_is_cached_under_its_own_name(tmp_path: Path,
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    """A preset's frames never come from (or go to) the draw of the same seed in the cache."""
+    """A preset's events never come from the cached draw of the same seed: the family draw's
+    events file (junk here) is not read, and the preset itself is simulated."""
+    (tmp_path / 'rotation_3_6_events.pkl').write_bytes(b'not a pickle')
     made: list[Draw] = []
 
     def fake_simulate(d: Draw, seconds: float) -> object:
