@@ -227,6 +227,7 @@ class LiveOdometry:
         self.imu_clock = StampChecker(tolerance_ns, strict=True)
         self.last_reset = Recent(now)
         self.size_mismatch = Recent(now)
+        self.queue_dropped = Recent(now)     # frames the node's subscription queue dropped
         self._now = now
 
     def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings) -> Iterator[Item]:
@@ -362,13 +363,25 @@ class LiveOdometry:
                 + self.composer.diagnostic_values()
                 + [('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
 
-    def states(self, window_s: float) -> list[tuple[str, str]]:
+    def queue_drops(self, gaps: int, depth: int) -> Iterator[Item]:
+        """Frames the node's subscription queue dropped (``gaps`` in all, queue ``depth``):
+        WARN in :meth:`states` for a window, and a throttled warning."""
+        text = (f'{gaps} frames dropped before the resonator: it falls behind the frames '
+                f'(queue frames_depth {depth}, oldest dropped first)')
+        self.queue_dropped.mark(text)
+        yield Note('warn', 'frames_dropped', text, throttled=True)
+
+    def states(self, window_s: float, *more: tuple[str, str]) -> list[tuple[str, str]]:
         """``(level, message)`` pairs: ERROR while frames of another size arrive (within
-        ``window_s``), the tracking state, WARN after a time reset (within ``window_s``)."""
+        ``window_s``), the tracking state, WARN after a time reset, the caller's ``more``, WARN
+        after frames dropped by the node's queue (within ``window_s``)."""
         states = []
         if self.size_mismatch.within(window_s):
             states.append(('error', f'every frame dropped: {self.size_mismatch.detail}'))
         states.append(self.composer.status())
         if self.last_reset.within(window_s):
             states.append(('warn', 'stamps went back: time state restarted'))
+        states += more
+        if self.queue_dropped.within(window_s):
+            states.append(('warn', self.queue_dropped.detail))
         return states

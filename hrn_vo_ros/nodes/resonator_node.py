@@ -25,7 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
-from hrn_vo_ros.core.clock import Recent, Throttle
+from hrn_vo_ros.core.clock import Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
@@ -68,7 +68,6 @@ class ResonatorNode(Node):
                                                 w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._throttle = Throttle()
-        self._dropped = Recent()                          # frames the queue dropped, when
         self._out = OdometryOutputs(self, opts.publish_tf)
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         if opts.publish_static_tf:
@@ -147,11 +146,7 @@ class ResonatorNode(Node):
         seq = info.get('publication_sequence_number')
         missed = self.stats.sequence(int(seq)) if seq else 0     # frames the queue dropped
         if missed:
-            self._dropped.mark(f'{self.stats.seq_gaps} frames dropped before the resonator: '
-                               'it falls behind the frames (queue frames_depth '
-                               f'{self._opts.config.frames_depth}, oldest dropped first)')
-            self.get_logger().warning(self._dropped.detail, throttle_duration_sec=(
-                self._opts.config.log_throttle_s))
+            self._emit(self._live.queue_drops(self.stats.seq_gaps, self._opts.config.frames_depth))
         try:
             t_ns, image = ros_msgs.image_to_frame(msg)
         except HrnVoError as err:
@@ -200,10 +195,8 @@ class ResonatorNode(Node):
         window_s = self._opts.config.diagnostics_window_s
         missing = self._focal.missing(self._algo.config,
                                       self.resolve_topic_name('~/camera_info'))
-        level, message = worst(*self._live.states(window_s),
-                               *([('warn', missing)] if missing else []),
-                               *([('warn', self._dropped.detail)]
-                                 if self._dropped.within(window_s) else []))
+        level, message = worst(*self._live.states(window_s,
+                                                  *([('warn', missing)] if missing else [])))
         publish_diagnostics(self, self._diag, self.stats, extra, level=level,
                             message='running' if level == 'ok' else message, window_s=window_s)
 

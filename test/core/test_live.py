@@ -114,6 +114,21 @@ def test_a_size_mismatch_is_a_reject_and_an_error_for_the_window() -> None:
     assert lo.states(10.0) == [('ok', 'tracking tracking (quality 1.00)')]
 
 
+def test_queue_drops_warn_for_the_window_after_the_callers_own_states() -> None:
+    now = [5.0]
+    lo = live(Scripted(), now)
+    items = list(lo.queue_drops(28, 10))
+    assert notes(items) == [('warn', 'frames_dropped')] and items[0].throttled
+    text = ('28 frames dropped before the resonator: it falls behind the frames '
+            '(queue frames_depth 10, oldest dropped first)')
+    tracking = ('ok', 'tracking tracking (quality 1.00)')
+    assert lo.states(10.0) == [tracking, ('warn', text)]
+    assert lo.states(10.0, ('warn', 'no focal')) == [tracking, ('warn', 'no focal'),
+                                                     ('warn', text)]
+    now[0] += 11.0
+    assert lo.states(10.0) == [tracking]
+
+
 def test_adopting_sizes_builds_a_resonator_per_new_size_or_rejects_with_the_reason() -> None:
     """adopt_size: a 9x6 frame asks the resizer once and goes to the new resonator (the old
     one sees no more frames); back to 8x6, another; a refused size is a throttled warning
