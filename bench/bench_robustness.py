@@ -634,7 +634,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; returns 0 (figures are printed, not asserted)."""
     p = argparse.ArgumentParser(description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('--kinds', nargs='+', choices=KINDS, default=list(KINDS))
+    p.add_argument('--kinds', nargs='+', choices=KINDS, default=None,
+                   help='kinds to run (default: all; rotation with --preset)')
     p.add_argument('--methods', nargs='+', choices=METHODS, default=list(METHODS))
     p.add_argument('-n', type=int, default=30, help='draws per kind (default 30)')
     p.add_argument('--seconds', type=float, default=None,
@@ -697,15 +698,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f'--preset {args.preset} seeds are neither tuning nor fresh draws (none of them '
                   'was tuned on): drop --tuning', file=sys.stderr)
             return 2
-        if args.kinds != ['rotation'] and args.kinds != list(KINDS):
+        if args.kinds not in (None, ['rotation']):
             print(f'--preset {args.preset} is a rotation sequence: drop --kinds or give '
                   '--kinds rotation', file=sys.stderr)
             return 2
         args.kinds = ['rotation']
-        if args.seconds is None:
-            args.seconds = preset(args.preset).seconds
+    args.kinds = args.kinds or list(KINDS)
     if args.seconds is None:
-        args.seconds = 15.0
+        args.seconds = preset(args.preset).seconds if args.preset else 15.0
     if args.smoke:
         args.n, args.seconds = 1, 6.0
     if args.preset is not None:

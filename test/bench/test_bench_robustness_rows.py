@@ -37,8 +37,9 @@ def test_a_csv_without_the_lag_column_reads_as_unknown_lags(tmp_path: Path) -> N
 
 def test_a_preset_with_another_kind_or_split_is_refused(
         capsys: pytest.CaptureFixture[str]) -> None:
-    assert robustness.main(['--preset', 'shapes_rotation', '--kinds', 'translation']) == 2
-    assert '--kinds rotation' in capsys.readouterr().err
+    for kinds in (['translation'], ['rotation', 'translation', 'arm']):
+        assert robustness.main(['--preset', 'shapes_rotation', '--kinds', *kinds]) == 2
+        assert '--kinds rotation' in capsys.readouterr().err
     assert robustness.main(['--preset', 'shapes_rotation', '--tuning']) == 2
     assert 'drop --tuning' in capsys.readouterr().err
 
