@@ -155,8 +155,9 @@ class HRN(Prediction):
     # the tracker's figures, as the network's own (docs/model.md, section 9)
     @property
     def state(self) -> str:
-        """``tracking``, ``degraded`` or ``lost``."""
-        return self.tracker.state
+        """``tracking``, ``degraded`` or ``lost``, as the outputs report it
+        (:attr:`.Tracker.reported`; the network's own logic follows ``tracker.state``)."""
+        return self.tracker.reported
 
     @property
     def hot_pixels(self) -> int:
@@ -283,12 +284,12 @@ class HRN(Prediction):
             return self._restart(canvas, t_ns, n_in, spread, peak, sims, carried=carried)
         self._follow(point, n_on, dt_s)
         updated = False
-        if learn and (not c.tracking.enabled or (self.state != 'lost'
+        if learn and (not c.tracking.enabled or (self.tracker.state != 'lost'
                                                  and self.quality >= c.tracking.map_quality)):
             eng.update_map(S, point, map_mu1(c), c.map.mu2, target)
             updated = self._map_learned = True
         if self.gyro_bias.enabled and predicted is not None and not rejected \
-                and self.state == 'tracking' and self.quality >= c.imu.bias_min_quality:
+                and self.tracker.state == 'tracking' and self.quality >= c.imu.bias_min_quality:
             self._learn_bias(point, predicted, dt_s)
         return self._emit(t_ns, point, spread, peak, sims, updated, carried=carried)
 
@@ -402,7 +403,7 @@ class HRN(Prediction):
         Not while the gyro carries the states (``carried``): ``remap_s`` rules that case."""
         c = self.cfg
         return (c.tracking.bootstrap_lost and c.map.learn and not carried
-                and not self._map_learned and self.state == 'lost')
+                and not self._map_learned and self.tracker.state == 'lost')
 
     def _restart(self, canvas: Floats, t_ns: int, n_in: int, spread: dict[str, float],
                  peak: dict[str, float], sims: dict[str, Real], *, carried: bool) -> Estimate:
@@ -439,7 +440,7 @@ class HRN(Prediction):
         """Book-keeping of tracked frames: the on-pixel density and frame interval, and the
         velocity (gated)."""
         c = self.cfg
-        tracking = self.state == 'tracking'
+        tracking = self.tracker.state == 'tracking'
         if tracking:        # running means of the tracked frames' on-pixel counts, intervals
             self.tracker.note_tracked(n_on, dt_s)
         if c.cleanup.predict_velocity > 0.0:
@@ -497,7 +498,7 @@ class HRN(Prediction):
         # the output: the last tracked pose while lost or on a poor degraded frame, unless
         # the gyro carried the states (its prediction is a measurement of the motion)
         out = self._pose.update(point, self._engine.books, hold=not carried and self.tracker.poor,
-                                tracking=self.state == 'tracking')
+                                tracking=self.tracker.state == 'tracking')
         est = Estimate(t_ns=int(t_ns), h=out['h'], v=out['v'], r=out['r'],
                        z=out['z'], confidence=peak, spread=spread,
                        iteration=self.iteration, map_updated=updated, similarity=sims,

@@ -11,9 +11,9 @@ Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality
 ``sharpness(peak)``, ``distinct_term(r)``, ``psr_term(r)``, ``update(q)``, ``search_due()``,
 ``bootstrap_due()``, ``remap_due(t_ns)``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
 ``sparse(n_on)``, ``unusual(n_on)``, ``after_gap(dt_s)``, ``gap_search``,
-``note_tracked(n_on, dt_s)`` and the attributes ``state``, ``quality``, ``overlap``,
-``distinct``, ``relocalisations``, ``held_frames``, ``established``, ``restarts``,
-``lost_since``, ``interval``, ``gaps``.
+``note_tracked(n_on, dt_s)``, ``reported`` and the attributes ``state``, ``quality``,
+``overlap``, ``distinct``, ``relocalisations``, ``held_frames``, ``established``,
+``restarts``, ``lost_since``, ``interval``, ``gaps``, ``poor_run``.
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ class Tracker:
         self.restarts = 0               # maps started afresh (bootstrap_due)
         self.interval: float | None = None  # running mean interval (s) of tracked frames
         self.gaps = 0                   # frames that followed a gap (after_gap)
+        self.poor_run = 0               # frames of quality < degrade in a row, across new maps
         self._new_map('tracking')
 
     def restart(self) -> None:
@@ -131,6 +132,7 @@ class Tracker:
         self.quality = q
         self._good_run = self._good_run + 1 if q >= tc.recover else 0
         self.bad_run = self.bad_run + 1 if q < tc.degrade else 0
+        self.poor_run = self.poor_run + 1 if q < tc.degrade else 0
         if self.state == 'tracking' and q < tc.degrade:
             self.state = 'degraded'
         elif self.state == 'degraded':
@@ -146,6 +148,17 @@ class Tracker:
         self.established = self.established or self.state == 'tracking'
         if self.state != 'degraded':    # tracking again, or lost: the lost schedule rules
             self._gap = self.settling = False
+
+    @property
+    def reported(self) -> str:
+        """The state the outputs report: :attr:`state`, except that a degraded track whose
+        last ``lose_frames`` frames were all poor is reported ``lost`` although new maps
+        (:meth:`restart`) started its state machine again in between: a track that restarts
+        its map on every frame (it never established one) never reaches ``lost`` by itself,
+        yet its output holds as a lost one does."""
+        if self.state == 'degraded' and self.poor_run >= self.cfg.lose_frames:
+            return 'lost'
+        return self.state
 
     def search_due(self) -> bool:
         """Whether this frame runs the global search: the first lost frame and every
@@ -194,7 +207,7 @@ class Tracker:
     def relocked(self, q: float) -> None:
         """An accepted re-localisation of quality ``q``: degraded, one good frame counted."""
         self.quality, self.state = q, 'degraded'
-        self._good_run, self.bad_run, self.lost_run = 1, 0, 0
+        self._good_run, self.bad_run, self.lost_run, self.poor_run = 1, 0, 0, 0
         self.settling = True
         self.relocalisations += 1
 

@@ -756,3 +756,23 @@ def test_fill_gain_keeps_tracked_frames_denser_than_max_fill(gain: float) -> Non
         assert all(e.valid and e.state == 'tracking' for e in dense)
     else:
         assert not any(e.valid for e in dense)
+
+
+@pytest.mark.parametrize('bootstrap', [1, 0])
+def test_a_track_that_never_establishes_is_reported_lost(bootstrap: int) -> None:
+    """Frames of pure noise from the first one on: every frame is poor. With the bootstrap
+    each poor frame starts a new map, which starts the state machine again (degraded, no poor
+    frame counted), so the internal state never reaches lost; the reported state is lost from
+    the lose_frames-th poor frame on, as it is without the bootstrap."""
+    rng = np.random.default_rng(0)
+    frames = [(rng.random((72, 96)) < 0.04).astype(np.uint8) for _ in range(45)]
+    hrn = make({'tracking': {'bootstrap_frames': bootstrap, 'bootstrap_lost': False}})
+    est = [hrn.step(f, i * 5_000_000) for i, f in enumerate(frames)]
+    n = hrn.cfg.tracking.lose_frames
+    assert [e.state for e in est[1:n]] == ['degraded'] * (n - 1)
+    # the first frame makes the map; the n-th poor frame after it is frame n
+    assert all(e.state == 'lost' for e in est[n:]), [e.state for e in est]
+    if bootstrap:
+        assert hrn.tracker.restarts >= len(frames) - 5
+        assert hrn.tracker.state == 'degraded'      # internally restarted on every frame
+        assert len({(e.h, e.v, e.r) for e in est}) == 1     # the output holds at the origin
