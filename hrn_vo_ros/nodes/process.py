@@ -1,17 +1,67 @@
 """The nodes' process entry point (:func:`run`): init, spin, and a clean exit on Ctrl-C,
-SIGTERM or external shutdown at any point, without a traceback."""
+SIGTERM or external shutdown at any point, without a traceback, bounded in time."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 import contextlib
+import faulthandler
 import signal
+import threading
+import time
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 from hrn_vo_ros.errors import ConfigError
+
+#: Seconds a node process may take to end once it is stopping (its context shut down by a
+#: signal or externally, or its clean-up begun); then every thread's stack goes to stderr and
+#: the process exits 1. ``ros2 launch`` kills a node 10 s after its SIGINT anyway (SIGTERM
+#: after 5 s, SIGKILL 5 s later): this limit makes a stuck stop end as fast and say where.
+STOP_LIMIT_S = 10.0
+#: How often the watchdog thread looks at the context (seconds).
+WATCH_PERIOD_S = 0.2
+
+
+class _StopLimit:
+    """The time limit of a stopping process: armed when its clean-up begins, or by a daemon
+    thread once the context is shut down; disarmed when :func:`run` returns.
+
+    A stop signal reaches rclpy's handler, which shuts the context down from its own thread and
+    wakes the executor; should the main thread never get back to Python (stuck in a callback,
+    or in rclpy's C code with the stop signals blocked), nothing would end the process. The
+    limit is :func:`faulthandler.dump_traceback_later`, which needs neither the GIL nor the
+    main thread to fire. It is process-wide: disarmed when ``run`` returns, it cannot end a
+    caller that goes on (a test running a node in its own process).
+    """
+
+    def __init__(self, limit_s: float) -> None:
+        self.limit_s = limit_s
+        self._lock = threading.Lock()
+        self._done = False
+
+    def watch(self) -> None:
+        """Start the thread that arms the limit once the context is no longer ok."""
+        threading.Thread(target=self._watch, name='hrn_vo_ros_stop_limit', daemon=True).start()
+
+    def _watch(self) -> None:
+        while not self._done and rclpy.ok():
+            time.sleep(WATCH_PERIOD_S)
+        self.arm()
+
+    def arm(self) -> None:
+        """From now, ``limit_s`` to the end of :func:`run` (again from now if armed)."""
+        with self._lock:
+            if not self._done:
+                faulthandler.dump_traceback_later(self.limit_s, exit=True)
+
+    def disarm(self) -> None:
+        """For good: ``run`` is returning."""
+        with self._lock:
+            self._done = True
+            faulthandler.cancel_dump_traceback_later()
 
 
 def _ignore_stop_signals() -> None:
@@ -51,9 +101,11 @@ def default_stop_signals() -> None:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def _shut_down(node: Node | None) -> None:
-    """Destroy the node and shut rclpy down, ignoring further stop signals meanwhile."""
-    steps: list[Callable[[], object]] = [] if node is None else [node.destroy_node]
+def _shut_down(node: Node | None, limit: _StopLimit | None = None) -> None:
+    """Arm the stop ``limit``, destroy the node and shut rclpy down, ignoring further stop
+    signals meanwhile."""
+    steps: list[Callable[[], object]] = [] if limit is None else [limit.arm]
+    steps += [] if node is None else [node.destroy_node]
     steps.append(rclpy.try_shutdown)
     while steps:
         try:
@@ -66,7 +118,8 @@ def _shut_down(node: Node | None) -> None:
         steps.pop(0)
 
 
-def run(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+def run(make_node: Callable[[], Node], args: list[str] | None = None,
+        stop_limit_s: float = STOP_LIMIT_S) -> int:
     """The Jazzy entry point: init, spin, shut down cleanly on Ctrl-C or external shutdown.
 
     A :class:`ConfigError` while the node starts (bad parameters) is logged and gives exit 2.
@@ -75,15 +128,19 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     start-up stops it there (rclpy's handler shuts the context down, so whatever the node was
     creating fails; that failure is not reported as an error), and once shutting down further
     signals are ignored until the bounded clean-up is done (the process is ending: they
-    stay ignored).
+    stay ignored). A stop that takes longer than ``stop_limit_s`` from the context's shutdown
+    or the clean-up's start (:data:`STOP_LIMIT_S`) dumps every thread's stack to stderr and
+    exits 1: a hang is bounded and says where it was.
     """
     node = None
     code = 0
     initialised = False
+    limit = _StopLimit(stop_limit_s)
     default_stop_signals()   # drop the import-time exit (hrn_vo_ros.nodes) before rclpy's own
     try:
         rclpy.init(args=args)
         initialised = True
+        limit.watch()
         node = make_node()
         executor = _executor()
         if executor is not None:
@@ -97,5 +154,6 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
         if not initialised or rclpy.ok():   # a real error, not a signal during start-up
             raise
     finally:
-        _shut_down(node)
+        _shut_down(node, limit)
+        limit.disarm()          # the stop signals stay ignored: nothing interrupts this
     return code

@@ -118,3 +118,73 @@ def test_signals_during_start_up(first: signal.Signals, second: signal.Signals) 
     proc.send_signal(second)
     out = finish(proc, sent)
     assert 'spinning' not in out                        # stopped during start-up
+
+
+# Nodes that never finish stopping: their clean-up, or a callback that holds the main thread in
+# C with the stop signals blocked (so the signal reaches rclpy's handler, which shuts the
+# context down, but the main thread never sees it). A stop limit of 1 s ends them (exit 1) and
+# names where they were; run() disarms it when it returns, so a caller can go on.
+STUCK_NODE = """
+import signal, sys, time
+import rclpy
+from hrn_vo_ros.nodes.process import run
+from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+
+class Stuck(PacketizerNode):
+    def __init__(self):
+        super().__init__()
+        self.create_timer(0.05, self.on_timer)
+        print('spinning', flush=True)
+
+    def on_timer(self):
+        if 'callback' in sys.argv:
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+            print('stuck', flush=True)
+            time.sleep(60)
+        if 'returns' in sys.argv:
+            rclpy.try_shutdown()
+        if 'raise' in sys.argv:       # a real error: the clean-up begins, the context is ok
+            raise RuntimeError('a bug in a callback')
+
+    def destroy_node(self):
+        if 'destroy' in sys.argv:
+            print('destroying', flush=True)
+            time.sleep(60)
+        return super().destroy_node()
+
+code = run(Stuck, stop_limit_s=1.0)
+time.sleep(2.0)
+print('went on', flush=True)
+sys.exit(code)
+"""
+
+
+@pytest.mark.parametrize('where, line, frame', [('destroy', 'destroying', 'destroy_node'),
+                                                ('callback', 'stuck', 'on_timer'),
+                                                ('raise destroy', 'destroying', 'destroy_node')])
+def test_a_stop_that_hangs_ends_within_the_limit_and_names_where(
+        where: str, line: str, frame: str) -> None:
+    proc = start([sys.executable, '-c', STUCK_NODE, *where.split()])
+    wait_line(proc, 'stdout', line if where != 'destroy' else 'spinning')
+    time.sleep(0.3)
+    sent = time.monotonic()
+    if where != 'raise destroy':          # (that one is stopping by itself)
+        proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f'still running {TIMEOUT} s after the signal: {err[-2000:]}')
+    took = time.monotonic() - sent
+    assert proc.returncode == 1, (proc.returncode, err[-2000:])
+    # the limit from the signal (or, stopping by itself, from before the line), the period
+    assert (1.0 if where != 'raise destroy' else 0.3) <= took < 6.0, took
+    assert 'Timeout' in err and f'in {frame}' in err, err[-2000:]
+    assert 'went on' not in out
+
+
+def test_the_stop_limit_is_disarmed_when_run_returns() -> None:
+    proc = start([sys.executable, '-c', STUCK_NODE, 'returns'])
+    out = finish(proc, time.monotonic(), limit=20.0)
+    assert 'went on' in out                     # 2 s after run() returned, past the 1 s limit
