@@ -422,7 +422,8 @@ def test_recorder_finishes_its_bag_on_repeated_sigterm(ros: None, tmp_path: Path
             pub.publish(_image(i))
             i += 1
             probe.wait(lambda: probe.value('term_recorder', key) > 0, 0.3)
-        assert probe.value('term_recorder', key) > 0, probe.diags
+        assert probe.value('term_recorder', key) > 0, (  # (the recorder's side, if it fails)
+            rec.proc.poll(), probe.diags.get('term_recorder'), rec.log.read_text()[-3000:])
         probe.wait(lambda: False, 1.0)          # late warm-up images and diagnostics arrive
         warm = probe.value('term_recorder', key)
         for j in range(30):
