@@ -67,15 +67,21 @@ def wait_line(proc: subprocess.Popen[str], stream: str, text: str) -> None:
     pytest.fail(f'no {text!r} on {stream} of {proc.args}')
 
 
-def finish(proc: subprocess.Popen[str], sent: float, limit: float = 10.0) -> str:
-    """Exit code 0, no traceback, within ``limit`` seconds of the first signal."""
+def ended(proc: subprocess.Popen[str], sent: float) -> tuple[str, str, float]:
+    """(stdout, stderr, seconds since ``sent``) once the process ended; fails after
+    ``TIMEOUT``."""
     try:
         out, err = proc.communicate(timeout=TIMEOUT)
     except subprocess.TimeoutExpired:
         proc.kill()
         out, err = proc.communicate()
         pytest.fail(f'still running {TIMEOUT} s after the signals: {err[-2000:]}')
-    took = time.monotonic() - sent
+    return out, err, time.monotonic() - sent
+
+
+def finish(proc: subprocess.Popen[str], sent: float, limit: float = 10.0) -> str:
+    """Exit code 0, no traceback, within ``limit`` seconds of the first signal."""
+    out, err, took = ended(proc, sent)
     assert proc.returncode == 0, f'exit {proc.returncode}: {err[-2000:]}'
     assert 'Traceback' not in err and 'Traceback' not in out, err[-2000:]
     assert took < limit, f'took {took:.1f} s to exit'
@@ -170,13 +176,7 @@ def test_a_stop_that_hangs_ends_within_the_limit_and_names_where(
     sent = time.monotonic()
     if where != 'raise destroy':          # (that one is stopping by itself)
         proc.send_signal(signal.SIGINT)
-    try:
-        out, err = proc.communicate(timeout=TIMEOUT)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        out, err = proc.communicate()
-        pytest.fail(f'still running {TIMEOUT} s after the signal: {err[-2000:]}')
-    took = time.monotonic() - sent
+    out, err, took = ended(proc, sent)
     assert proc.returncode == 1, (proc.returncode, err[-2000:])
     # the limit from the signal (or, stopping by itself, from before the line), the period
     assert (1.0 if where != 'raise destroy' else 0.3) <= took < 6.0, took
