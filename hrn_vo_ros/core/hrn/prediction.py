@@ -16,7 +16,13 @@ from numpy.typing import NDArray
 
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
 from hrn_vo_ros.core.hrn.engine import Engine
-from hrn_vo_ros.core.hrn.gyro import GyroBias, rotation_deg, rotation_of_shift, shift_of_rotation
+from hrn_vo_ros.core.hrn.gyro import (
+    chart_shift_of_rotation,
+    GyroBias,
+    rotation_deg,
+    rotation_of_shift,
+    shift_of_rotation,
+)
 from hrn_vo_ros.core.hrn.shared import Real
 from hrn_vo_ros.errors import ConfigError, TrackingError
 
@@ -46,7 +52,12 @@ class Prediction:
 
     def _imu_predict(self, g: NDArray[np.float64]) -> dict[str, float]:
         rb = self._engine.books['r']    # (core/hrn/gyro.py: the content angle's frame)
-        shift = shift_of_rotation(g, self.cfg.focal_px, self._point['r'] * rb.unit, rb.unit)
+        alpha = self._point['r'] * rb.unit
+        if self.cfg.sphere.enabled:     # the map is the sphere's chart: bind on it exactly
+            shift = chart_shift_of_rotation(g, self.cfg.focal_px, self._point['h'],
+                                            self._point['v'], alpha, rb.unit)
+        else:
+            shift = shift_of_rotation(g, self.cfg.focal_px, alpha, rb.unit)
         for name, delta in shift.items():
             self._engine.shift(name, delta)
         return shift

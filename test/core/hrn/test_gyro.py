@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 from test_hrn import FOCAL, gyro_between, make
 
-from hrn_vo_ros.core.hrn.gyro import GyroBias, rotation_deg, rotation_of_shift, shift_of_rotation
+from hrn_vo_ros.core.hrn.gyro import (
+    chart_shift_of_rotation,
+    GyroBias,
+    rotation_deg,
+    rotation_matrix,
+    rotation_of_shift,
+    shift_of_rotation,
+)
 
 
 def test_shift_of_a_rotation_by_hand() -> None:
@@ -30,6 +37,47 @@ def test_rotation_of_a_shift_inverts_it() -> None:
         alpha, unit = rng.uniform(-math.pi, math.pi), rng.uniform(0.01, 0.1)
         d = shift_of_rotation(theta, 80.0, alpha, unit)
         np.testing.assert_allclose(rotation_of_shift(d, 80.0, alpha, unit), theta, atol=1e-12)
+
+
+def test_chart_binding_is_the_first_order_one_at_the_centre() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        theta = rng.normal(0.0, 1e-5, 3)
+        alpha = rng.uniform(-math.pi, math.pi)
+        got = chart_shift_of_rotation(theta, 80.0, 0.0, 0.0, alpha, 0.05)
+        want = shift_of_rotation(theta, 80.0, alpha, 0.05)
+        for k in want:      # second order: |theta|^2 f ~ 1e-8 px
+            assert got[k] == pytest.approx(want[k], abs=1e-7), (k, got, want)
+
+
+def test_chart_binding_follows_a_loop_of_pans_and_tilts() -> None:
+    """Pan 30°, tilt 30°, pan back, tilt back, in 0.1° steps of the gyro: the camera does not
+    come back to its first view (the loop turns it about its axis and leaves the optical axis
+    off the start). The first-order binding returns to (0, 0, 0); the chart binding's
+    distance from the centre is the optical axis's angle from the first one and its roll the
+    twist, both from the product of the steps' rotations alone."""
+    f, unit, n = 80.0, 0.02, 300
+    step = math.radians(30.0) / n
+    steps = ([np.array([0.0, step, 0.0])] * n + [np.array([step, 0.0, 0.0])] * n
+             + [np.array([0.0, -step, 0.0])] * n + [np.array([-step, 0.0, 0.0])] * n)
+    R, flat, pose = np.eye(3), np.zeros(3), np.zeros(3)
+    for g in steps:
+        R = R @ rotation_matrix(g)
+        d = shift_of_rotation(g, f, flat[2] * unit, unit)
+        flat += (d['h'], d['v'], d['r'])
+        c = chart_shift_of_rotation(g, f, pose[0], pose[1], pose[2] * unit, unit)
+        pose += (c['h'], c['v'], c['r'])
+    np.testing.assert_allclose(flat, 0.0, atol=1e-9)
+    # the swing-twist decomposition of the product: swing about e_z x axis, then the twist
+    axis = R[:, 2]
+    k = np.cross([0.0, 0.0, 1.0], axis)
+    swing = rotation_matrix(k / np.linalg.norm(k) * math.atan2(np.linalg.norm(k), axis[2]))
+    twist = swing.T @ R
+    axis_deg = math.degrees(math.acos(R[2, 2]))                     # 5.43°
+    twist_deg = math.degrees(math.atan2(twist[1, 0], twist[0, 0]))  # -14.38°
+    assert axis_deg > 5.0 and abs(twist_deg) > 14.0
+    assert math.degrees(math.hypot(pose[0], pose[1]) / f) == pytest.approx(axis_deg, abs=1e-6)
+    assert math.degrees(pose[2] * unit) == pytest.approx(-twist_deg, abs=1e-6)   # r = -theta_z
 
 
 def test_rotation_deg_is_the_largest_angle() -> None:
