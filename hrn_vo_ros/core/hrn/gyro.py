@@ -8,8 +8,8 @@ binds ``Rot(-alpha) d`` into ``h, v`` (``alpha`` the current content angle) and
 difference of readouts stands for.
 
 That is the first order. With the sphere correction the map is the sphere's chart (:mod:`.sphere`)
-and :func:`chart_shift_of_rotation` binds exactly: the pose's camera rotation
-(:func:`chart_rotation`) times the gyro's, read on the chart again (:func:`chart_pose`).
+and :func:`chart_shift_of_rotation` binds exactly: the pose's camera rotation (swing-twist)
+times the gyro's, read on the chart again.
 
 Bias ([design]; ``imu.bias_memory_s``, 30 s in the rotation config, off elsewhere): while vision
 tracks, the readout minus the gyro's prediction (the innovation) measures the gyro's error over
@@ -26,6 +26,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from hrn_vo_ros.core.hrn.shared import centred_mod
+from hrn_vo_ros.core.odometry.geometry import matrix_to_swing_twist, so3_exp, swing_twist_to_matrix
+
 F64 = NDArray[np.float64]
 
 
@@ -41,66 +44,27 @@ def shift_of_rotation(theta: F64, focal_px: float, alpha: float, unit_r: float
     return {'h': ca * dx + sa * dy, 'v': -sa * dx + ca * dy, 'r': -float(theta[2]) / unit_r}
 
 
-def rotation_matrix(w: F64) -> F64:
-    """The rotation of rotation vector ``w`` (rad), ``exp([w]x)`` (Rodrigues).
-
-    Shapes:
-        w: (3,); returns (3, 3).
-    """
-    th = float(np.linalg.norm(w))
-    if th < 1e-15:
-        return np.eye(3)
-    k = np.asarray(w, np.float64) / th
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    out: F64 = np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
-    return out
-
-
-def chart_rotation(h: float, v: float, alpha: float, focal_px: float) -> F64:
-    """The camera rotation (from the map's first view) of the chart pose ``h, v`` (frame
-    pixels) and content angle ``alpha`` (rad), in the binding's convention: a swing by
-    ``hypot(h, v) / f`` about the image-plane axis ``(v, -h)``, after a twist ``-alpha`` about
-    the optical axis (the sphere correction's chart, :mod:`.sphere`; the signs are those for
-    which :func:`shift_of_rotation` is this chart's first order).
-
-    Shapes:
-        returns (3, 3).
-    """
-    c, s = math.cos(alpha), math.sin(alpha)
-    twist = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])     # Rz(-alpha)
-    out: F64 = rotation_matrix(np.array([v / focal_px, -h / focal_px, 0.0])) @ twist
-    return out
-
-
-def chart_pose(R: F64, focal_px: float) -> tuple[float, float, float]:
-    """Inverse of :func:`chart_rotation`: ``(h, v, alpha)`` of the camera rotation ``R``; the
-    optical axis lies ``hypot(h, v) / f`` rad from the first view's (azimuthal equidistant)."""
-    z = R[:, 2]
-    th = math.acos(max(-1.0, min(1.0, float(z[2]))))
-    s = math.hypot(float(z[0]), float(z[1]))
-    h, v = (0.0, 0.0) if s < 1e-15 else (-focal_px * th * z[0] / s, -focal_px * th * z[1] / s)
-    twist = rotation_matrix(np.array([v / focal_px, -h / focal_px, 0.0])).T @ R
-    return h, v, -math.atan2(float(twist[1, 0]), float(twist[0, 0]))
-
-
 def chart_shift_of_rotation(theta: F64, focal_px: float, h: float, v: float, alpha: float,
                             unit_r: float) -> dict[str, float]:
     """:func:`shift_of_rotation` on the sphere's chart, exactly: the pose ``(h, v, alpha)``
     turned by ``theta`` (camera axes, rad) and read on the chart again; ``r`` in index units
     (``unit_r`` rad each), the change of ``alpha`` taken within half a turn.
 
-    The first-order binding is the same everywhere on the chart; the chart is not flat (a
-    loop of pans and tilts also turns the camera about its axis), so far from its centre the
-    first order errs by degrees: the ideal gyro alone, bound at first order, drifted 1-11° on
-    fast draws of the family (``docs/results.md``).
+    The chart pose is the swing-twist rotation (:mod:`hrn_vo_ros.core.odometry.geometry`) of
+    pan ``-h / f``, tilt ``v / f`` and roll ``-alpha``: the signs for which
+    :func:`shift_of_rotation` is its first order. That first order is the same everywhere on
+    the chart; the chart is not flat (a loop of pans and tilts also turns the camera about its
+    axis), so far from its centre it errs by degrees: the ideal gyro alone, bound at first
+    order, drifted 1-11° on fast draws of the family (``docs/results.md``).
 
     Shapes:
         theta: (3,).
     """
-    R = chart_rotation(h, v, alpha, focal_px) @ rotation_matrix(np.asarray(theta, np.float64))
-    hn, vn, an = chart_pose(R, focal_px)
-    dr = (an - alpha + math.pi) % (2.0 * math.pi) - math.pi
-    return {'h': hn - h, 'v': vn - v, 'r': dr / unit_r}
+    f = focal_px
+    R = swing_twist_to_matrix(-h / f, v / f, -alpha) @ so3_exp(theta)
+    pan, tilt, roll = matrix_to_swing_twist(R)
+    return {'h': -f * float(pan) - h, 'v': f * float(tilt) - v,
+            'r': centred_mod(-float(roll) - alpha, 2.0 * math.pi) / unit_r}
 
 
 def rotation_of_shift(d: dict[str, float], focal_px: float, alpha: float, unit_r: float

@@ -13,10 +13,10 @@ from hrn_vo_ros.core.hrn.gyro import (
     chart_shift_of_rotation,
     GyroBias,
     rotation_deg,
-    rotation_matrix,
     rotation_of_shift,
     shift_of_rotation,
 )
+from hrn_vo_ros.core.odometry.geometry import so3_exp
 
 
 def test_shift_of_a_rotation_by_hand() -> None:
@@ -62,7 +62,7 @@ def test_chart_binding_follows_a_loop_of_pans_and_tilts() -> None:
              + [np.array([0.0, -step, 0.0])] * n + [np.array([-step, 0.0, 0.0])] * n)
     R, flat, pose = np.eye(3), np.zeros(3), np.zeros(3)
     for g in steps:
-        R = R @ rotation_matrix(g)
+        R = R @ so3_exp(g)
         d = shift_of_rotation(g, f, flat[2] * unit, unit)
         flat += (d['h'], d['v'], d['r'])
         c = chart_shift_of_rotation(g, f, pose[0], pose[1], pose[2] * unit, unit)
@@ -71,7 +71,7 @@ def test_chart_binding_follows_a_loop_of_pans_and_tilts() -> None:
     # the swing-twist decomposition of the product: swing about e_z x axis, then the twist
     axis = R[:, 2]
     k = np.cross([0.0, 0.0, 1.0], axis)
-    swing = rotation_matrix(k / np.linalg.norm(k) * math.atan2(np.linalg.norm(k), axis[2]))
+    swing = so3_exp(k / np.linalg.norm(k) * math.atan2(np.linalg.norm(k), axis[2]))
     twist = swing.T @ R
     axis_deg = math.degrees(math.acos(R[2, 2]))                     # 5.43°
     twist_deg = math.degrees(math.atan2(twist[1, 0], twist[0, 0]))  # -14.38°
