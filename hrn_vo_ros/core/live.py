@@ -228,6 +228,7 @@ class LiveOdometry:
         self.last_reset = Recent(now)
         self.size_mismatch = Recent(now)
         self.queue_dropped = Recent(now)     # frames the node's subscription queue dropped
+        self.focal = FocalLength()           # focal_px, or a camera_info's
         self._now = now
 
     def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings) -> Iterator[Item]:
@@ -296,10 +297,35 @@ class LiveOdometry:
 
     def rebuild(self, cfg: ResonatorConfig,
                 make: Callable[[ResonatorConfig], ResonatorBackend]) -> None:
-        """A changed config: a new resonator from ``make``, at the frame size in use when
-        ``cfg`` can take it (an adopted size is kept), else at ``cfg``'s own size."""
+        """A changed config: a new resonator from ``make`` (with the camera_info's focal
+        length while ``cfg`` has none), at the frame size in use when ``cfg`` can take it (an
+        adopted size is kept), else at ``cfg``'s own size."""
+        cfg = self.focal.config(cfg, self.size)
         sized, _ = sized_config(cfg, *self.size)
         self.reconfigured(make(sized or cfg), self.size if sized else (cfg.width, cfg.height))
+
+    def sized(self, cfg: ResonatorConfig, width: int, height: int,
+              make: Callable[[ResonatorConfig], ResonatorBackend]
+              ) -> tuple[ResonatorBackend | None, str]:
+        """A :data:`Resizer`'s work: :func:`sized_resonator` for ``cfg`` with the camera_info's
+        focal length for frames of that size (while ``cfg`` has none)."""
+        return sized_resonator(self.focal.config(cfg, (width, height)), width, height, make)
+
+    def adopt_camera(self, camera: CameraFocal, cfg: ResonatorConfig,
+                     make: Callable[[ResonatorConfig], ResonatorBackend]) -> str:
+        """The first usable camera_info (``FocalLength.adopt``): a resonator that waited for
+        its focal length (gyro, sphere correction) is rebuilt with it; the text to log."""
+        rebuild, text = self.focal.adopt(camera, cfg, self.size)
+        if rebuild:
+            self.rebuild(cfg, make)
+        return text
+
+    def focal_for(self, cfg: ResonatorConfig, odo: OdometryConfig
+                  ) -> tuple[float, OdometryConfig]:
+        """The focal length in use (0: none; ``FocalLength.value``) and the odometry config
+        with it (a camera_info's focal length is the odometry's too)."""
+        return (self.focal.value(cfg.focal_px, self.size)[0],
+                self.focal.odometry(odo, cfg.focal_px, self.size))
 
     def reconfigured(self, estimator: ResonatorBackend, size: tuple[int, int]) -> None:
         """A new resonator, for frames of ``size`` (tracking restarts: no twist across)."""
@@ -344,6 +370,18 @@ class LiveOdometry:
         self.counts['estimates_out'] += 1
         self.counts['invalid_frames'] += 0 if est.valid else 1
         yield Step(t_ns, est, odo, out, time.perf_counter() - t0)
+
+    def diagnostics(self, window_s: float, measured: tuple[str, int, int], cfg: ResonatorConfig,
+                    odo: OdometryConfig, camera_info_topic: str
+                    ) -> tuple[list[tuple[str, object]], list[tuple[str, str]]]:
+        """What ``/diagnostics`` reports: the key/values (:meth:`diagnostic_values` with the
+        three the caller ``measured``, and the focal length's) and the ``(level, message)``
+        pairs of :meth:`states`, with a WARN while the gyro or sphere correction of ``cfg``
+        waits for a focal length (a camera_info on ``camera_info_topic``)."""
+        values = (self.diagnostic_values(*measured)
+                  + self.focal.diagnostic_values(cfg.focal_px, self.size, odo))
+        missing = self.focal.missing(cfg, camera_info_topic)
+        return values, self.states(window_s, *([('warn', missing)] if missing else []))
 
     def diagnostic_values(self, frame_rate_hz: str, output_subscribers: int,
                           odom_subscribers: int) -> list[tuple[str, object]]:

@@ -29,14 +29,7 @@ from hrn_vo_ros.core.clock import Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
-from hrn_vo_ros.core.live import (
-    FocalLength,
-    Item,
-    LiveOdometry,
-    LiveSettings,
-    make_resonator,
-    sized_resonator,
-)
+from hrn_vo_ros.core.live import Item, LiveOdometry, LiveSettings, make_resonator
 from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
@@ -59,13 +52,11 @@ class ResonatorNode(Node):
                                        on_change=lambda _: self._reconfigure(self._algo.config))
         opts, cfg = self._opts.config, self._algo.config
         self.stats = NodeStats()
-        self._focal = FocalLength()                       # focal_px, or a camera_info's
         self._live = LiveOdometry(self._make_hrn(cfg), publish.GyroGate(
             cfg.imu.camera_from_imu, max_samples=opts.imu_buffer_samples,
             max_pending=opts.max_pending_frames), (cfg.width, cfg.height),
             tolerance_ns=int(opts.clock_tolerance_s * 1e9), counts=self.stats.counts,
-            resize=lambda w, h: sized_resonator(self._focal.config(self._algo.config, (w, h)),
-                                                w, h, self._make_hrn))
+            resize=lambda w, h: self._live.sized(self._algo.config, w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
         self._throttle = Throttle()
         self._out = OdometryOutputs(self, opts.publish_tf)
@@ -101,13 +92,11 @@ class ResonatorNode(Node):
         """The settings ``core/live.py`` reads now (parameters may change between messages):
         the gyro as the resonator runs it (off while the focal length is unknown), a
         camera_info's focal length also for the odometry."""
-        opts, cfg, size = self._opts.config, self._algo.config, self._live.size
-        focal = self._focal.value(cfg.focal_px, size)[0]
+        opts, cfg = self._opts.config, self._algo.config
+        focal, odo = self._live.focal_for(cfg, opts.odometry)
         return LiveSettings(opts.frame_size == 'frames', cfg.imu.enabled and focal > 0.0,
-                            'z' in self._hrn.factors,
-                            self._focal.odometry(opts.odometry, cfg.focal_px, size), focal,
-                            opts.lost_variance, opts.min_quality, opts.imu_timeout_s,
-                            cfg.imu.camera_from_imu)
+                            'z' in self._hrn.factors, odo, focal, opts.lost_variance,
+                            opts.min_quality, opts.imu_timeout_s, cfg.imu.camera_from_imu)
 
     def _publish_static_tf(self) -> None:
         """base_link → camera (mount) and camera → IMU (``imu.camera_from_imu``) on /tf_static."""
@@ -120,13 +109,13 @@ class ResonatorNode(Node):
 
     def _reconfigure(self, cfg: ResonatorConfig) -> None:
         """A tunable changed: a new resonator with the same seed (tracking restarts)."""
-        self._live.rebuild(self._focal.config(cfg, self._live.size), self._make_hrn)
+        self._live.rebuild(cfg, self._make_hrn)
         self.get_logger().warning('resonator reconfigured: tracking restarts from a new map')
 
     def _on_camera_info(self, msg: CameraInfo) -> None:
         """The first usable camera_info gives the focal length while ``focal_px`` is unset;
         a resonator that needs it (gyro, sphere correction) is rebuilt with it."""
-        if self._focal.camera is not None:      # one taken before the subscription closed
+        if self._live.focal.camera is not None:     # one taken before the subscription closed
             return
         try:
             camera = ros_msgs.camera_info_focal(msg)
@@ -135,11 +124,8 @@ class ResonatorNode(Node):
             return
         if self._camera_info is not None:
             self._camera_info.close()
-        rebuild, text = self._focal.adopt(camera, self._algo.config, self._live.size)
-        if rebuild:
-            self._live.rebuild(self._focal.config(self._algo.config, self._live.size),
-                               self._make_hrn)
-        self.get_logger().info(text)
+        self.get_logger().info(self._live.adopt_camera(camera, self._algo.config,
+                                                       self._make_hrn))
 
     def _on_frame(self, msg: Image, info: dict[str, Any]) -> None:
         self.stats.count('frames_in')
@@ -185,20 +171,17 @@ class ResonatorNode(Node):
 
     def _on_timer(self) -> None:
         self._emit(self._live.tick(self._settings()))
-        if self._focal.camera is None and self._camera_info is not None:
+        if self._live.focal.camera is None and self._camera_info is not None:
             self._camera_info.recheck()
-        extra = self._live.diagnostic_values(
-            f'{self.stats.rate("estimates_out"):.1f}', *self._out.subscribers()
-        ) + self._focal.diagnostic_values(
-                self._algo.config.focal_px, self._live.size, self._opts.config.odometry
-            ) + self._extra_diagnostics()
-        window_s = self._opts.config.diagnostics_window_s
-        missing = self._focal.missing(self._algo.config,
-                                      self.resolve_topic_name('~/camera_info'))
-        level, message = worst(*self._live.states(window_s,
-                                                  *([('warn', missing)] if missing else [])))
-        publish_diagnostics(self, self._diag, self.stats, extra, level=level,
-                            message='running' if level == 'ok' else message, window_s=window_s)
+        opts = self._opts.config
+        values, states = self._live.diagnostics(
+            opts.diagnostics_window_s, (f'{self.stats.rate("estimates_out"):.1f}',
+                                        *self._out.subscribers()),
+            self._algo.config, opts.odometry, self.resolve_topic_name('~/camera_info'))
+        level, message = worst(*states)
+        publish_diagnostics(self, self._diag, self.stats, values + self._extra_diagnostics(),
+                            level=level, message='running' if level == 'ok' else message,
+                            window_s=opts.diagnostics_window_s)
 
     def _extra_diagnostics(self) -> list[tuple[str, object]]:
         """Hook for presets (loihi_node): more key/values for the diagnostics message."""

@@ -310,3 +310,46 @@ def test_focal_length_source_order_and_what_it_changes() -> None:
     assert f.config(kept, (96, 72)) is kept
     plain = FocalLength()
     assert plain.adopt((500.0, (640, 480)), from_dict(ResonatorConfig, {}), (96, 72))[0] is False
+
+
+def test_live_odometry_owns_the_focal_length_a_camera_info_gives() -> None:
+    """Before a camera_info: no focal length, the gyro config's WARN in the diagnostics, a
+    rebuild unchanged. Adopting one (500 px on 640x480 for 8x6 frames: D 80, 6.25 px) rebuilds
+    a gyro config with it, not a plain one; later rebuilds and a resize (16x12: 12.5 px) carry
+    it, a set focal_px wins, and the odometry's focal length follows it."""
+    made: list[ResonatorConfig] = []
+
+    def make(cfg: ResonatorConfig) -> Any:
+        made.append(cfg)
+        return Scripted()
+
+    rot = from_dict(ResonatorConfig, {'imu': {'enabled': True}})
+    odo = OdometryConfig(focal_length_px=80.0)
+    lo = live(Scripted())
+    assert lo.focal_for(rot, odo) == (0.0, odo)
+    values, states = lo.diagnostics(5.0, ('9.5', 1, 2), rot, odo, '/cam/camera_info')
+    assert values[:5] == [('frame_rate_hz', '9.5'), ('pending_frames', 0), ('gyro_samples', 0),
+                          ('output_subscribers', 1), ('odom_subscribers', 2)]
+    assert values[-2:] == [('focal_px', '80'), ('focal_source', 'odometry.focal_length_px')]
+    warn = [m for lv, m in states if lv == 'warn' and 'no focal length' in m]
+    assert len(warn) == 1 and warn[0].endswith('a camera_info on /cam/camera_info')
+    lo.rebuild(rot, make)
+    assert made[-1].focal_px == 0.0
+    assert 'restarts' not in lo.adopt_camera((500.0, (640, 480)), ResonatorConfig(), make)
+    assert len(made) == 1                                   # nothing waited for it
+    lo.focal.camera = None
+    text = lo.adopt_camera((500.0, (640, 480)), rot, make)
+    assert text.startswith('focal length 6.25 frame px') and text.endswith('restarts with it')
+    assert len(made) == 2 and made[-1].focal_px == 6.25 and lo.size == (8, 6)
+    focal, with_cam = lo.focal_for(rot, odo)
+    assert focal == 6.25 and with_cam.focal_length_px == 6.25
+    values, states = lo.diagnostics(5.0, ('9.5', 1, 2), rot, odo, '/cam/camera_info')
+    assert values[-2:] == [('focal_px', '6.25'), ('focal_source', 'camera_info')]
+    assert not any('no focal length' in m for _, m in states)
+    lo.rebuild(rot, make)
+    assert made[-1].focal_px == 6.25
+    est, _ = lo.sized(rot, 16, 12, make)
+    assert est is not None and (made[-1].width, made[-1].focal_px) == (16, 12.5)
+    own = from_dict(ResonatorConfig, {'imu': {'enabled': True}, 'focal_px': 7.0})
+    lo.rebuild(own, make)
+    assert made[-1].focal_px == 7.0 and lo.focal_for(own, odo) == (7.0, odo)
