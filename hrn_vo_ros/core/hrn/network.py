@@ -125,7 +125,8 @@ class HRN(Prediction):
         self.tracker = Tracker(c.tracking)     # quality and state (core/hrn/tracking.py)
         self.gyro_bias = GyroBias(c.imu.bias_memory_s, c.imu.bias_prior_s,
                                   math.radians(c.imu.max_bias_deg_s))
-        self._pose = ReportedPose()            # the output (core/hrn/pose.py)
+        # the output (core/hrn/pose.py): on the sphere's chart its origins compose as rotations
+        self._pose = ReportedPose(c.focal_px if c.sphere.enabled else 0.0)
         self._hot = HotPixelMask(c.width, c.height, c.hot_pixel_rate, c.hot_pixel_on)
         self.reset()
 

@@ -5,12 +5,13 @@ the physical pose it outputs. Three things happen on the way: periodic factors a
 against the last tracked pose (the wild readouts of poor frames cannot carry the pose a whole
 canvas away or turn it around); poor frames output the last tracked pose instead of their
 readout (unless the gyro carried the states); and the poses on the current map are composed
-with that map's origin in the output's frame (moved by each bootstrap restart).
+with that map's origin in the output's frame (moved by each bootstrap restart): as planar
+similarities, or, on the sphere's chart (the sphere correction), as the camera rotations they are.
 
-Public API: ``ReportedPose()`` with ``reset()``, ``update(point, books, hold=, tracking=)``,
-``restart()``, ``compose(pose)`` and the attributes ``raw`` (the network's own pose on the
-current map: physical, unwrapped), ``out`` (the output), ``held`` (the last tracked pose on the
-map, None before one) and ``origin``.
+Public API: ``ReportedPose(chart_focal_px=0.0)`` with ``reset()``, ``update(point, books,
+hold=, tracking=)``, ``restart()``, ``compose(pose)`` and the attributes ``raw`` (the
+network's own pose on the current map: physical, unwrapped), ``out`` (the output), ``held``
+(the last tracked pose on the map, None before one) and ``origin``.
 """
 
 from __future__ import annotations
@@ -19,14 +20,23 @@ from collections.abc import Mapping
 import math
 
 from hrn_vo_ros.core.hrn.shared import centred_mod, FactorCodebook
+from hrn_vo_ros.core.odometry.geometry import matrix_to_swing_twist, swing_twist_to_matrix
 
 POSE_KEYS = ('h', 'v', 'r', 'z')
 
 
 class ReportedPose:
-    """Unwrap, hold and the map's origin: from a readout (index units) to the output pose."""
+    """Unwrap, hold and the map's origin: from a readout (index units) to the output pose.
 
-    def __init__(self) -> None:
+    Args:
+        chart_focal_px: The focal length (frame pixels) when the maps are the sphere's chart
+            (the sphere correction): a pose is then the camera rotation of swing-twist pan
+            ``h / f``, tilt ``-v / f`` and roll ``r`` (as the odometry reads it), and a map's
+            origin composes with it as a rotation; 0: as a planar similarity.
+    """
+
+    def __init__(self, chart_focal_px: float = 0.0) -> None:
+        self.chart_focal_px = chart_focal_px
         self.reset()
 
     def reset(self) -> None:
@@ -65,10 +75,20 @@ class ReportedPose:
 
     def compose(self, pose: Mapping[str, float]) -> dict[str, float]:
         """A pose on the map in the output's frame: the map's origin composed with it (roll
-        and log zoom add; the shift turns by the origin's roll)."""
+        and log zoom add; the shift turns by the origin's roll); on the sphere's chart the
+        camera rotations multiply, origin first (the new map's chart is centred on the camera
+        of its first frame), with the roll kept continuous and the log zoom added."""
         o = self.origin
         if not any(o.values()):
             return dict(pose)
+        f = self.chart_focal_px
+        if f > 0.0:
+            R = (swing_twist_to_matrix(o['h'] / f, -o['v'] / f, o['r'])
+                 @ swing_twist_to_matrix(pose['h'] / f, -pose['v'] / f, pose['r']))
+            pan, tilt, roll = matrix_to_swing_twist(R)
+            r = o['r'] + pose['r']
+            return {'h': f * float(pan), 'v': -f * float(tilt),
+                    'r': r + centred_mod(float(roll) - r, 2.0 * math.pi), 'z': o['z'] + pose['z']}
         c, s = math.cos(o['r']), math.sin(o['r'])
         return {'h': o['h'] + c * pose['h'] - s * pose['v'],
                 'v': o['v'] + s * pose['h'] + c * pose['v'],
