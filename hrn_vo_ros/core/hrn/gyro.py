@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.hrn.shared import centred_mod
-from hrn_vo_ros.core.odometry.geometry import matrix_to_swing_twist, so3_exp, swing_twist_to_matrix
+from hrn_vo_ros.core.odometry.geometry import turn_swing_twist
 
 F64 = NDArray[np.float64]
 
@@ -61,10 +61,9 @@ def chart_shift_of_rotation(theta: F64, focal_px: float, h: float, v: float, alp
         theta: (3,).
     """
     f = focal_px
-    R = swing_twist_to_matrix(-h / f, v / f, -alpha) @ so3_exp(theta)
-    pan, tilt, roll = matrix_to_swing_twist(R)
-    return {'h': -f * float(pan) - h, 'v': f * float(tilt) - v,
-            'r': centred_mod(-float(roll) - alpha, 2.0 * math.pi) / unit_r}
+    pan, tilt, roll = turn_swing_twist((-h / f, v / f, -alpha), theta)
+    return {'h': -f * pan - h, 'v': f * tilt - v,
+            'r': float(centred_mod(-roll - alpha, 2.0 * math.pi)) / unit_r}
 
 
 def rotation_of_shift(d: dict[str, float], focal_px: float, alpha: float, unit_r: float

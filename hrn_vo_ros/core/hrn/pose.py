@@ -20,7 +20,7 @@ from collections.abc import Mapping
 import math
 
 from hrn_vo_ros.core.hrn.shared import centred_mod, FactorCodebook
-from hrn_vo_ros.core.odometry.geometry import matrix_to_swing_twist, swing_twist_to_matrix
+from hrn_vo_ros.core.odometry.geometry import compose_swing_twist
 
 POSE_KEYS = ('h', 'v', 'r', 'z')
 
@@ -83,12 +83,11 @@ class ReportedPose:
             return dict(pose)
         f = self.chart_focal_px
         if f > 0.0:
-            R = (swing_twist_to_matrix(o['h'] / f, -o['v'] / f, o['r'])
-                 @ swing_twist_to_matrix(pose['h'] / f, -pose['v'] / f, pose['r']))
-            pan, tilt, roll = matrix_to_swing_twist(R)
+            pan, tilt, roll = compose_swing_twist((o['h'] / f, -o['v'] / f, o['r']),
+                                                  (pose['h'] / f, -pose['v'] / f, pose['r']))
             r = o['r'] + pose['r']
-            return {'h': f * float(pan), 'v': -f * float(tilt),
-                    'r': r + centred_mod(float(roll) - r, 2.0 * math.pi), 'z': o['z'] + pose['z']}
+            return {'h': f * pan, 'v': -f * tilt,
+                    'r': r + float(centred_mod(roll - r, 2.0 * math.pi)), 'z': o['z'] + pose['z']}
         c, s = math.cos(o['r']), math.sin(o['r'])
         return {'h': o['h'] + c * pose['h'] - s * pose['v'],
                 'v': o['v'] + s * pose['h'] + c * pose['v'],

@@ -21,10 +21,14 @@ Conventions (used everywhere in the package):
 Public API: :func:`rot_x`, :func:`rot_y`, :func:`rot_z`, :func:`euler_ptr_to_matrix`,
 :func:`matrix_to_euler_ptr`, :func:`swing_twist_to_matrix`, :func:`matrix_to_swing_twist`,
 :func:`quat_to_matrix`, :func:`matrix_to_quat`, :func:`rotation_angle`, :func:`so3_log`,
-:func:`so3_exp`.
+:func:`so3_exp`; for one pose per call (the network's per-frame steps), in plain floats:
+:func:`compose_swing_twist` and :func:`turn_swing_twist`.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -210,3 +214,58 @@ def rotation_angle(R: F64) -> F64:
         R: (..., 3, 3); returns (...,).
     """
     return np.asarray(np.linalg.norm(so3_log(R), axis=-1), dtype=np.float64)
+
+
+# -- one pose at a time, in floats (about 30x faster than the array forms above for one pose) --
+
+Quat = tuple[float, float, float, float]
+Angles = tuple[float, float, float]
+
+
+def compose_swing_twist(a: Angles, b: Angles) -> Angles:
+    """The swing-twist (pan, tilt, roll) of ``swing_twist_to_matrix(*a) @
+    swing_twist_to_matrix(*b)`` (roll in [-pi, pi]; swing angle < 180°)."""
+    return _quat_swing_twist(_quat_product(_swing_twist_quat(*a), _swing_twist_quat(*b)))
+
+
+def turn_swing_twist(a: Angles, theta: Sequence[float] | F64) -> Angles:
+    """The swing-twist (pan, tilt, roll) of ``swing_twist_to_matrix(*a) @ so3_exp(theta)``
+    (``theta`` a rotation vector, rad; roll in [-pi, pi]; swing angle < 180°)."""
+    return _quat_swing_twist(_quat_product(_swing_twist_quat(*a), _rotvec_quat(
+        float(theta[0]), float(theta[1]), float(theta[2]))))
+
+
+def _rotvec_quat(x: float, y: float, z: float) -> Quat:
+    angle = math.sqrt(x * x + y * y + z * z)
+    if angle < 1e-12:
+        return (0.5 * x, 0.5 * y, 0.5 * z, 1.0)          # first order
+    k = math.sin(0.5 * angle) / angle
+    return (k * x, k * y, k * z, math.cos(0.5 * angle))
+
+
+def _swing_twist_quat(pan: float, tilt: float, roll: float) -> Quat:
+    # exp([tilt, pan, 0]^) (x) Rz(roll), quaternions (x, y, z, w)
+    sx, sy, _, sw = _rotvec_quat(tilt, pan, 0.0)
+    tz, tw = math.sin(0.5 * roll), math.cos(0.5 * roll)
+    return (tw * sx + tz * sy, tw * sy - tz * sx, sw * tz, sw * tw)
+
+
+def _quat_product(p: Quat, q: Quat) -> Quat:
+    px, py, pz, pw = p
+    qx, qy, qz, qw = q
+    return (pw * qx + qw * px + py * qz - pz * qy, pw * qy + qw * py + pz * qx - px * qz,
+            pw * qz + qw * pz + px * qy - py * qx, pw * qw - px * qx - py * qy - pz * qz)
+
+
+def _quat_swing_twist(q: Quat) -> Angles:
+    # q = swing (x) twist, the twist about z: q_z / q_w = tan(roll / 2), then swing = q (x)
+    # twist^-1, a rotation about an axis in the image plane
+    x, y, z, w = q if q[3] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
+    roll = 2.0 * math.atan2(z, w)
+    tz, tw = math.sin(0.5 * roll), math.cos(0.5 * roll)
+    sx, sy, sw = tw * x - tz * y, tw * y + tz * x, tw * w + tz * z
+    n = math.hypot(sx, sy)
+    if n < 1e-15:
+        return 0.0, 0.0, roll
+    angle = 2.0 * math.atan2(n, sw)
+    return angle * sy / n, angle * sx / n, roll
