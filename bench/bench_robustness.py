@@ -35,7 +35,10 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   'tracking'`` (the estimator did not say within 10 frames that it may be wrong); 'n/a' as
   for silent losses;
 * **re-localisation time**: from the start of a loss to the first moment after which the error
-  stays below the threshold for 0.5 s; losses that never recover count in "never".
+  stays below the threshold for 0.5 s; losses that never recover count in "never";
+* **breakdown**: tracked per scene class, event-rate band, background-noise band and band of
+  the *junk share* (CSV column ``junk``: the draw's background-noise and hot-pixel events over
+  all its events, from its simulator settings; above half, the frames are mostly noise).
 
 ``--cache DIR`` keeps each simulated sequence's frames, ground truth and IMU there (pickles
 keyed by kind, seed, length, ``--pset`` and a hash of the config's packetizer settings), so
@@ -159,6 +162,8 @@ class Row:
     silent_tc: int | None = None  # silent losses with the calibration on 'tracking' estimates
     late_tc: int | None = None    # late flags, the same way
     lag_s: float = math.nan       # the protocol's lag (s, + = the estimate lags)
+    junk: float = math.nan        # share of the draw's events from background noise and hot
+                                  # pixels (:func:`junk_share`; capped at 1)
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -403,7 +408,8 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         reloc = ';'.join('never' if r is None else f'{r:.2f}' for *_, r in eps)
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
                        len(eps), silent, late, reloc, wall, note,
-                       d.summary(), scale, silent_tc, late_tc, lag))
+                       d.summary(), scale, silent_tc, late_tc, lag,
+                       junk_share(d, info['events_per_s'])))
     return out
 
 
@@ -489,6 +495,20 @@ def table(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
 RATE_BANDS = ((0.0, 2e4, '<20k ev/s'), (2e4, 1e5, '20-100k'), (1e5, math.inf, '>=100k'))
 
 
+#: Bands of the share of events that carry no scene (background noise and hot pixels,
+#: :func:`junk_share`): above half, the frames are mostly noise.
+JUNK_BANDS = ((0.0, 0.15, 'junk <15%'), (0.15, 0.5, '15-50%'), (0.5, math.inf, '>=50%'))
+
+
+def junk_share(d: Any, events_per_s: float) -> float:
+    """The share of a draw's events that are background noise or hot pixels, from its
+    simulator settings (noise Hz per sensor pixel, hot pixels and their rate) over its
+    measured event rate; capped at 1."""
+    c = d.config
+    junk = c.noise_rate_hz * d.calib.width * d.calib.height + c.hot_pixels * c.hot_pixel_rate_hz
+    return min(junk / events_per_s, 1.0) if events_per_s > 0 else 1.0
+
+
 #: Background-noise bands of the breakdown (events per pixel per second, the draw's
 #: ``noise_rate_hz``, log-uniform 0.01-1 Hz: about a quarter of the draws are at 0.3 or more).
 NOISE_BANDS = ((0.0, 0.3, 'noise <0.3 Hz'), (0.3, math.inf, '>=0.3 Hz'))
@@ -524,10 +544,11 @@ def unevaluable(r: Row) -> str:
 
 
 def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
-    """Tracked / draws per scene class, event-rate band and background-noise band, and the
+    """Tracked / draws per scene class, event-rate, background-noise and junk-share band, and the
     unevaluated rows by cause: where each method fails."""
-    lines = ['tracked per scene class, event rate and background noise (Hz per pixel); '
-             'unevaluated: too few estimates (few), an estimate that never moves (still), other']
+    lines = ['tracked per scene class, event rate, background noise (Hz per pixel) and share '
+             'of noise and hot-pixel events (junk); unevaluated: too few estimates (few), an '
+             'estimate that never moves (still), other']
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method]
@@ -538,7 +559,7 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                 sub = [r for r in rs if scene_of(r) == scene]
                 parts.append(f'{scene} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
             for bands, value in ((RATE_BANDS, lambda r: r.events_per_s),
-                                 (NOISE_BANDS, noise_of)):
+                                 (NOISE_BANDS, noise_of), (JUNK_BANDS, lambda r: r.junk)):
                 for lo, hi, name in bands:
                     sub = [r for r in rs if (x := value(r)) is not None and lo <= x < hi]
                     if sub:

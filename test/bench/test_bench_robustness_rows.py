@@ -62,3 +62,29 @@ def test_a_preset_sequence_is_cached_under_its_own_name(tmp_path: Path,
     (d,) = made
     assert d.split == 'preset' and d.seed == 3 and d.seconds == 60.0
     assert d.calib.fx == pytest.approx(199.092366542)
+
+
+def test_the_junk_share_of_a_draw_and_its_band(tmp_path: Path) -> None:
+    """Fresh rotation 10045: 0.023 Hz of noise on 240x180 pixels (994 events/s) and 30 hot
+    pixels at 561.7 Hz (16851) of 22593 events/s: 79 %, in the top band; a CSV written before
+    the column reads as unknown and falls in no band."""
+    from hrn_vo_ros.core.sim.family import draw
+    d = draw('rotation', 10045)
+    c = d.config
+    want = (c.noise_rate_hz * 240 * 180 + 30 * c.hot_pixel_rate_hz) / 22593.3
+    assert (c.hot_pixels, d.calib.width, d.calib.height) == (30, 240, 180)
+    assert robustness.junk_share(d, 22593.3) == pytest.approx(want) == pytest.approx(0.7898,
+                                                                                      abs=1e-4)
+    assert robustness.junk_share(d, 100.0) == 1.0 and robustness.junk_share(d, 0.0) == 1.0
+    rows = [robustness.Row('rotation', s, 'hrn', 10.0, 1e5, 100.0, err, False, 0.0, 0, 0, 0, '',
+                           1.0, '', 'draw', junk=j)
+            for s, err, j in [(1, 0.5, 0.05), (2, 0.5, 0.79), (3, 50.0, 0.5), (4, 0.5, 0.15)]]
+    line = robustness.breakdown(rows, ['rotation'], ['hrn'])[1]
+    assert 'junk <15% 1/1, 15-50% 1/1, >=50% 1/2' in line
+    path = tmp_path / 'old.csv'
+    header = ('kind,seed,method,seconds,events_per_s,peak,median_err,lost,lost_s,losses,silent,'
+              'late,reloc_s,wall_s,note,draw')
+    path.write_text(header + '\nrotation,7,hrn,10.0,1000.0,50.0,0.4,False,0.0,0,0,0,,1.0,,d\n')
+    (row,) = robustness.read_rows(path)
+    assert math.isnan(row.junk) and 'junk' not in robustness.breakdown(
+        [row], ['rotation'], ['hrn'])[1]
