@@ -20,10 +20,8 @@ import sys
 import time
 from typing import Any
 
-import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -31,7 +29,7 @@ from rosgraph_msgs.msg import Clock
 from hrn_vo_ros.errors import BagError, ConfigError, HrnVoError
 from hrn_vo_ros.io import bags, ros_msgs
 from hrn_vo_ros.io.playback import play, PlaybackConfig, publish_retrying
-from hrn_vo_ros.nodes.process import default_stop_signals
+from hrn_vo_ros.nodes.process import run_task
 
 EVENT_TYPES = (bags.EVENT_PACKET, bags.DVS_EVENT_ARRAY)
 LINGER_S = 0.5  # after the last record, so that best-effort samples leave the process
@@ -167,24 +165,9 @@ class BagPlayer(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script ``bag_player``: play, report, exit (1 on a bag error)."""
-    default_stop_signals()
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = BagPlayer()
-        node.play()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 130
-    except HrnVoError as err:
-        rclpy.logging.get_logger('bag_player').error(str(err))
-        code = err.exit_code
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    """Console script ``bag_player``: play, report, exit 0 (a package error's exit code, e.g. 4
+    for a bad bag; 130 when stopped; the clean-up is bounded: ``nodes/process.py``)."""
+    return run_task(BagPlayer, lambda node: (node.play(), 0)[1], args, logger='bag_player')
 
 
 if __name__ == '__main__':

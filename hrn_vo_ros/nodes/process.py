@@ -1,5 +1,6 @@
-"""The nodes' process entry point (:func:`run`): init, spin, and a clean exit on Ctrl-C,
-SIGTERM or external shutdown at any point, without a traceback, bounded in time."""
+"""The nodes' process entry points: :func:`run` (init, spin) and :func:`run_task` (init, one
+job, exit: ``bag_player``), each with a clean exit on Ctrl-C, SIGTERM or external shutdown at
+any point, without a traceback, bounded in time."""
 
 from __future__ import annotations
 
@@ -9,12 +10,13 @@ import faulthandler
 import signal
 import threading
 import time
+from typing import TypeVar
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from hrn_vo_ros.errors import ConfigError
+from hrn_vo_ros.errors import ConfigError, HrnVoError
 
 #: Seconds a node process may take to end once it is stopping (its context shut down by a
 #: signal or externally, or its clean-up begun); then every thread's stack goes to stderr and
@@ -23,6 +25,8 @@ from hrn_vo_ros.errors import ConfigError
 STOP_LIMIT_S = 10.0
 #: How often the watchdog thread looks at the context (seconds).
 WATCH_PERIOD_S = 0.2
+
+N = TypeVar('N', bound=Node)
 
 
 class _StopLimit:
@@ -156,4 +160,40 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None,
     finally:
         _shut_down(node, limit)
         limit.disarm()          # the stop signals stay ignored: nothing interrupts this
+    return code
+
+
+def run_task(make_node: Callable[[], N], task: Callable[[N], int],
+             args: list[str] | None = None, *, interrupted: int = 130,
+             logger: str = 'hrn_vo_ros', stop_limit_s: float = STOP_LIMIT_S) -> int:
+    """The entry point of a node that does one job and exits (``bag_player``): init, make the
+    node, ``task(node)``'s exit code.
+
+    Ctrl-C, SIGTERM or an external shutdown during the job give ``interrupted`` (130, as a
+    shell reports Ctrl-C), as does an error raised because the context was shut down; a
+    :class:`~hrn_vo_ros.errors.HrnVoError` is logged (``logger``) and gives its ``exit_code``.
+    The clean-up is :func:`run`'s: shielded from further stop signals and bounded by
+    ``stop_limit_s`` (a stack dump and exit 1 beyond it).
+    """
+    node: N | None = None
+    code = 0
+    limit = _StopLimit(stop_limit_s)
+    default_stop_signals()
+    try:
+        rclpy.init(args=args)
+        limit.watch()
+        node = make_node()
+        code = task(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = interrupted
+    except HrnVoError as err:
+        rclpy.logging.get_logger(logger).error(str(err))
+        code = err.exit_code
+    except Exception:
+        if rclpy.ok():          # a real error, not the consequence of a stop signal
+            raise
+        code = interrupted
+    finally:
+        _shut_down(node, limit)
+        limit.disarm()
     return code

@@ -188,3 +188,68 @@ def test_the_stop_limit_is_disarmed_when_run_returns() -> None:
     proc = start([sys.executable, '-c', STUCK_NODE, 'returns'])
     out = finish(proc, time.monotonic(), limit=20.0)
     assert 'went on' in out                     # 2 s after run() returned, past the 1 s limit
+
+
+# A one-job node (as bag_player) run by run_task: its job prints and sleeps (or fails), its
+# destroy_node may be slow or hang; the stop limit is 1 s.
+TASK_NODE = """
+import sys, time
+from rclpy.node import Node
+from hrn_vo_ros.errors import BagError
+from hrn_vo_ros.nodes.process import run_task
+
+class Job(Node):
+    def __init__(self):
+        super().__init__('job')
+
+    def work(self):
+        print('working', flush=True)
+        if 'bad' in sys.argv:
+            raise BagError('no such bag')
+        time.sleep(0.2 if 'quick' in sys.argv else 60)
+        return 7
+
+    def destroy_node(self):
+        print('destroying', flush=True)
+        time.sleep(60 if 'hang' in sys.argv else 0.5)
+        print('destroyed', flush=True)
+        return super().destroy_node()
+
+code = run_task(Job, Job.work, stop_limit_s=1.0)
+time.sleep(1.5)
+print('went on', flush=True)
+sys.exit(code)
+"""
+
+
+def test_a_job_stopped_twice_exits_130_after_its_whole_clean_up() -> None:
+    proc = start([sys.executable, '-c', TASK_NODE])
+    wait_line(proc, 'stdout', 'working')
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    wait_line(proc, 'stdout', 'destroying')
+    proc.send_signal(signal.SIGINT)                     # inside the clean-up: ignored
+    time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    out, err, took = ended(proc, sent)
+    assert proc.returncode == 130, (proc.returncode, err[-2000:])
+    assert 'Traceback' not in err and 'destroyed' in out and took < 5.0, (err[-2000:], took)
+
+
+@pytest.mark.parametrize('how, code', [('quick', 7), ('bad', 4)])
+def test_a_job_that_ends_gives_its_code_and_the_caller_goes_on(how: str, code: int) -> None:
+    """The job's own code, or a package error's exit code (a BagError: 4) with its message
+    logged; the stop limit is disarmed on return (the caller outlives it)."""
+    proc = start([sys.executable, '-c', TASK_NODE, how])
+    out, err, _ = ended(proc, time.monotonic())
+    assert proc.returncode == code, (proc.returncode, err[-2000:])
+    assert 'went on' in out and 'destroyed' in out and 'Traceback' not in err, err[-2000:]
+    assert ('no such bag' in err) == (how == 'bad')
+
+
+def test_a_job_whose_clean_up_hangs_ends_within_the_limit() -> None:
+    proc = start([sys.executable, '-c', TASK_NODE, 'quick', 'hang'])
+    wait_line(proc, 'stdout', 'destroying')
+    out, err, took = ended(proc, time.monotonic())
+    assert proc.returncode == 1 and 'in destroy_node' in err, (proc.returncode, err[-2000:])
+    assert took < 5.0 and 'went on' not in out, took
