@@ -1,5 +1,5 @@
-"""Helpers shared by the package's nodes: QoS profiles, throttled rejects, the camera_info
-input and diagnostics (the process entry point ``run``: :mod:`.process`)."""
+"""Helpers shared by the package's nodes: QoS profiles, throttled rejects and notes, the
+camera_info input and diagnostics (the process entry point ``run``: :mod:`.process`)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo
 
+from hrn_vo_ros.core.clock import Throttle
+from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.nodes.stats import NodeStats
 
@@ -44,6 +46,24 @@ class Rejects:
             logger = self._loggers[kind] = self._node.get_logger().get_child(kind)
         logger.warning(f'dropped a message ({kind}, {self._stats.bad[kind]} so far): {detail}',
                        throttle_duration_sec=self._throttle_s())
+
+
+class NoteLog:
+    """Logs the notes of a node's core logic (:class:`~hrn_vo_ros.core.events.stream.Note`):
+    rejects counted and logged by ``reject`` (:class:`Rejects`), info as info, warnings as
+    warnings, throttled ones at most once per ``throttle_s()`` per kind."""
+
+    def __init__(self, node: Node, reject: Rejects, throttle_s: Callable[[], float]) -> None:
+        self._node, self._reject, self._throttle_s = node, reject, throttle_s
+        self._throttle = Throttle()
+
+    def __call__(self, note: Note) -> None:
+        if note.level == 'reject':
+            self._reject(note.kind, note.text)
+        elif note.level == 'info':
+            self._node.get_logger().info(note.text)
+        elif not note.throttled or self._throttle.due(note.kind, self._throttle_s()):
+            self._node.get_logger().warning(note.text)
 
 
 class CameraInfoInput:

@@ -41,13 +41,19 @@ from event_camera_msgs.msg import EventPacket
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
-from hrn_vo_ros.core.clock import Throttle
 from hrn_vo_ros.core.events.packet_config import PacketizerConfig
 from hrn_vo_ros.core.events.stream import DECODE_ERRORS, PacketStream, StreamOutput
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import PacketizerNodeConfig
-from hrn_vo_ros.nodes.common import CameraInfoInput, publish_diagnostics, qos, Rejects, worst
+from hrn_vo_ros.nodes.common import (
+    CameraInfoInput,
+    NoteLog,
+    publish_diagnostics,
+    qos,
+    Rejects,
+    worst,
+)
 from hrn_vo_ros.nodes.params import declare_config
 from hrn_vo_ros.nodes.process import run
 from hrn_vo_ros.nodes.stats import NodeStats
@@ -64,10 +70,11 @@ class PacketizerNode(Node):
         self.stats = NodeStats()
         self._stream = PacketStream(cfg, sensor_size=opts.sensor_size, clock=opts.clock,
                                     counts=self.stats.counts)
-        self._reader, self._throttle = ros_msgs.PacketReader(), Throttle()
+        self._reader = ros_msgs.PacketReader()
         self._camera_info = (CameraInfoInput(self, self._on_camera_info)
                              if self._stream.needs_camera_info else None)
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
+        self._note = NoteLog(self, self._reject, lambda: self._opts.config.log_throttle_s)
         self._pub = self.create_publisher(Image, '~/frames', qos(opts.frames_depth))
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_subscription(EventPacket, '~/events', self._on_events,
@@ -126,16 +133,9 @@ class PacketizerNode(Node):
             self.stats.processing(time.perf_counter() - t0)
 
     def _publish(self, out: StreamOutput) -> None:
-        """Log the notes (throttled ones at most once per ``log_throttle_s`` per kind), then
-        publish the frames."""
+        """Log the notes (:class:`NoteLog`), then publish the frames."""
         for note in out.notes:
-            if note.level == 'reject':
-                self._reject(note.kind, note.text)
-            elif note.level == 'info':
-                self.get_logger().info(note.text)
-            elif not note.throttled or self._throttle.due(note.kind,
-                                                          self._opts.config.log_throttle_s):
-                self.get_logger().warning(note.text)
+            self._note(note)
         frame_id = self._opts.config.frame_id
         for stamp, image in out.frames:
             try:

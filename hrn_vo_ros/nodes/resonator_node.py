@@ -25,7 +25,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
-from hrn_vo_ros.core.clock import Throttle
 from hrn_vo_ros.core.events.stream import Note
 from hrn_vo_ros.core.hrn.backends import BackendConfig, ResonatorBackend
 from hrn_vo_ros.core.hrn.config import ResonatorConfig
@@ -34,7 +33,14 @@ from hrn_vo_ros.core.odometry import publish
 from hrn_vo_ros.errors import HrnVoError
 from hrn_vo_ros.io import ros_msgs
 from hrn_vo_ros.io.nodeconfig import ResonatorNodeConfig
-from hrn_vo_ros.nodes.common import CameraInfoInput, publish_diagnostics, qos, Rejects, worst
+from hrn_vo_ros.nodes.common import (
+    CameraInfoInput,
+    NoteLog,
+    publish_diagnostics,
+    qos,
+    Rejects,
+    worst,
+)
 from hrn_vo_ros.nodes.outputs import OdometryOutputs
 from hrn_vo_ros.nodes.params import declare_config
 from hrn_vo_ros.nodes.process import run
@@ -58,7 +64,7 @@ class ResonatorNode(Node):
             tolerance_ns=int(opts.clock_tolerance_s * 1e9), counts=self.stats.counts,
             resize=lambda w, h: self._live.sized(self._algo.config, w, h, self._make_hrn))
         self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
-        self._throttle = Throttle()
+        self._note = NoteLog(self, self._reject, lambda: self._opts.config.log_throttle_s)
         self._out = OdometryOutputs(self, opts.publish_tf)
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         if opts.publish_static_tf:
@@ -154,11 +160,7 @@ class ResonatorNode(Node):
         """Count and log the notes, publish each processed frame (before the next is made)."""
         for item in items:
             if isinstance(item, Note):
-                if item.level == 'reject':
-                    self._reject(item.kind, item.text)
-                elif not item.throttled or self._throttle.due(item.kind,
-                                                              self._opts.config.log_throttle_s):
-                    self.get_logger().warning(item.text)
+                self._note(item)
                 continue
             t0 = time.perf_counter()
             self._out.step(item, self._opts.config)
