@@ -81,16 +81,9 @@ class PacketizerNode(Node):
                                  qos(opts.events_depth, reliable=opts.events_reliable,
                                      keep_all=opts.events_keep_all))
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
-        waiting = ('' if not self._stream.needs_camera_info else
-                   ' (no calib.* parameters: events are held until a camera_info arrives on '
-                   f'{self.resolve_topic_name("~/camera_info")})')
-        size = (f'{cfg.sensor_width}x{cfg.sensor_height} -> {cfg.width}x{cfg.height}'
-                if opts.sensor_size == 'config' else 'sensor size from the event packets')
-        cap = (f', above {cfg.events_per_frame * cfg.max_frame_hz / 1e6:.3g} M events/s an '
-               'even share binned (max_frame_hz)' if cfg.max_frame_hz > 0 else '')
-        self.get_logger().info(
-            f'{cfg.events_per_frame} events per frame, {size}, rectify {cfg.rectify}{waiting}, '
-            f'events {"reliable" if opts.events_reliable else "best effort"}{cap}')
+        self.get_logger().info(self._stream.describe(
+            events_reliable=opts.events_reliable,
+            camera_info_topic=self.resolve_topic_name('~/camera_info')))
 
     def _reconfigure(self, cfg: PacketizerConfig) -> None:
         """A tunable changed: start a new packetizer (pending events are dropped)."""

@@ -118,6 +118,19 @@ class PacketStream:
         """Whether the calibration must come from a camera_info (rectify, no ``calib.*``)."""
         return self.cfg.rectify != 'none' and not self.cfg.calib.known
 
+    def describe(self, *, events_reliable: bool, camera_info_topic: str) -> str:
+        """The node's start-up line: packet size, sensor and frame size, rectification (and
+        the wait for a camera_info on ``camera_info_topic``), the events' QoS, the rate cap."""
+        cfg = self.cfg
+        waiting = ('' if not self.needs_camera_info else ' (no calib.* parameters: events are '
+                   f'held until a camera_info arrives on {camera_info_topic})')
+        size = (f'{cfg.sensor_width}x{cfg.sensor_height} -> {cfg.width}x{cfg.height}'
+                if self.sensor_size == 'config' else 'sensor size from the event packets')
+        cap = (f', above {cfg.events_per_frame * cfg.max_frame_hz / 1e6:.3g} M events/s an '
+               'even share binned (max_frame_hz)' if cfg.max_frame_hz > 0 else '')
+        return (f'{cfg.events_per_frame} events per frame, {size}, rectify {cfg.rectify}'
+                f'{waiting}, events {"reliable" if events_reliable else "best effort"}{cap}')
+
     def _ready(self) -> bool:
         """Whether frames can be made (calibration and sensor size known)."""
         if self.needs_camera_info and self.calib is None:

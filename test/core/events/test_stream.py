@@ -202,3 +202,18 @@ def test_packet_problem_kinds() -> None:
     unsorted = EventArray.from_arrays(np.array([2, 1]), np.array([0, 0]), np.array([0, 0]),
                                       np.array([1, 1]))
     assert packet_problem(unsorted, CFG, None) == 'time_backwards'
+
+
+def test_the_start_up_line_says_what_the_stream_does() -> None:
+    """Packet size, sizes, rectification and its wait, QoS and the rate cap (2000 x 1500 events
+    per frame and second: 3 M events/s)."""
+    capped = paper_framing(events_per_frame=2000, sensor_width=240, sensor_height=180,
+                           downsample=2.5, max_frame_hz=1500.0)
+    assert PacketStream(capped).describe(events_reliable=False, camera_info_topic='/c') == (
+        '2000 events per frame, 240x180 -> 96x72, rectify none, events best effort, above 3 M '
+        'events/s an even share binned (max_frame_hz)')
+    text = PacketStream(RECT, sensor_size='messages').describe(events_reliable=True,
+                                                               camera_info_topic='/cam/info')
+    assert text == (f'{RECT.events_per_frame} events per frame, sensor size from the event '
+                    f'packets, rectify {RECT.rectify} (no calib.* parameters: events are held '
+                    'until a camera_info arrives on /cam/info), events reliable')
