@@ -38,7 +38,10 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   stays below the threshold for 0.5 s; losses that never recover count in "never";
 * **breakdown**: tracked per scene class, event-rate band, background-noise band and band of
   the *junk share* (CSV column ``junk``: the draw's background-noise and hot-pixel events over
-  all its events, from its simulator settings; above half, the frames are mostly noise).
+  all its events, from its simulator settings; above half, the frames are mostly noise); a
+  last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
+  ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
+  evaluation's doing or the estimator's own delay) and names those it gains and loses.
 
 ``--cache DIR`` keeps each simulated sequence's frames, ground truth and IMU there (pickles
 keyed by kind, seed, length, ``--pset`` and a hash of the config's packetizer settings), so
@@ -164,6 +167,8 @@ class Row:
     lag_s: float = math.nan       # the protocol's lag (s, + = the estimate lags)
     junk: float = math.nan        # share of the draw's events from background noise and hot
                                   # pixels (:func:`junk_share`; capped at 1)
+    tracked_lag0: bool | None = None   # tracked with the protocol's lag fixed at 0 (None: not
+                                       # evaluated)
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -367,6 +372,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         late: int | None = None
         silent_tc: int | None = None
         late_tc: int | None = None
+        tracked0: bool | None = None
         scale = lag = math.nan
         traced: tuple[Any, np.ndarray | None, np.ndarray] | None = None
         try:
@@ -394,6 +400,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
                 silent_tc, late_tc = silent_tracking_calibrated(seq, est, kind, res.lag_s,
                                                        list(states or ()), keep, st)
             traced = res, st_all, quality[idx]
+            tracked0 = tracked_at_lag0(seq, est, kind, res, med)
         except Exception as err:      # a failed evaluation counts as lost
             note = f'{type(err).__name__}: {str(err)[:80]}'
         wall = time.perf_counter() - t0
@@ -409,8 +416,26 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
                        len(eps), silent, late, reloc, wall, note,
                        d.summary(), scale, silent_tc, late_tc, lag,
-                       junk_share(d, info['events_per_s'])))
+                       junk_share(d, info['events_per_s']), tracked0))
     return out
+
+
+def tracked_at_lag0(seq: Sequence, est: EstimateSeries, kind: str, res: Any,
+                    med: float) -> bool | None:
+    """Whether the sequence counts as tracked when the protocol's lag is fixed at 0 (a
+    simulation's clocks are exact, so a lag the search finds is the evaluation's, or the
+    estimator's own delay); None when that evaluation fails. ``res``, ``med``: the protocol's
+    result, reused when its lag is 0 already."""
+    assert seq.groundtruth is not None
+    try:
+        if res.lag_s != 0.0:
+            res = evaluate(seq.groundtruth, est, kind, lag_s=0.0)
+            med = res.metrics[METRIC[kind]]
+    except Exception:
+        return None
+    keep = res.series.t_s >= START_S
+    return not losses(res.series.t_s[keep], res.series.err[keep], THRESHOLD[kind]) \
+        and med <= THRESHOLD[kind]
 
 
 def silent_tracking_calibrated(seq: Sequence, est: EstimateSeries, kind: str, lag_s: float,
@@ -587,7 +612,25 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                              f'(unjudged {len(rs) - len(judged)}: '
                              f'{" ".join(str(r.seed) for r in rs if r.silent_tc is None) or "-"})'
                              + _odd_lags(rs))
+    lag0 = [_lag0_line(kind, method, [r for r in rows if r.kind == kind and r.method == method])
+            for kind in kinds for method in methods]
+    if any(lag0):
+        lines.append("tracked with the protocol's lag fixed at 0 (simulated clocks are exact; a "
+                     'diagnostic)')
+        lines += [line for line in lag0 if line]
     return lines
+
+
+def _lag0_line(kind: str, method: str, rs: list[Row]) -> str:
+    """``KIND METHOD tracked A/N (gained: SEEDS; lost: SEEDS)`` against the protocol's own lag,
+    or '' when no row has the figure."""
+    rs = [r for r in rs if r.tracked_lag0 is not None]
+    if not rs:
+        return ''
+    gained = ' '.join(str(r.seed) for r in rs if r.tracked_lag0 and is_lost(r)) or '-'
+    lost = ' '.join(str(r.seed) for r in rs if not r.tracked_lag0 and not is_lost(r)) or '-'
+    return (f'{kind:12s} {method:9s} tracked {sum(bool(r.tracked_lag0) for r in rs)}/{len(rs)} '
+            f'(gained: {gained}; lost: {lost})')
 
 
 #: A protocol lag beyond this (s) is named after the silent losses: the lag search (the roll's
@@ -604,7 +647,8 @@ def _odd_lags(rs: list[Row]) -> str:
 
 #: How a ``--csv`` cell becomes a :class:`Row` field, by the field's annotation.
 _PARSE: dict[str, Any] = {'int': int, 'float': float, 'str': str, 'bool': lambda v: v == 'True',
-                          'int | None': lambda v: None if v == '' else int(v)}
+                          'int | None': lambda v: None if v == '' else int(v),
+                          'bool | None': lambda v: None if v == '' else v == 'True'}
 
 
 def read_rows(path: Path) -> list[Row]:

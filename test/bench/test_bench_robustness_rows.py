@@ -88,3 +88,26 @@ def test_the_junk_share_of_a_draw_and_its_band(tmp_path: Path) -> None:
     (row,) = robustness.read_rows(path)
     assert math.isnan(row.junk) and 'junk' not in robustness.breakdown(
         [row], ['rotation'], ['hrn'])[1]
+
+
+def test_the_lag0_diagnostic_names_what_the_lag_search_moved(tmp_path: Path) -> None:
+    """Tracked with the lag fixed at 0 against the protocol's verdict: gained and lost seeds;
+    rows without the figure (older CSVs, failed evaluations) are left out, and with none the
+    line is not printed."""
+    def row(seed: int, err: float, lag0: bool | None) -> object:
+        return robustness.Row('rotation', seed, 'hrn', 10.0, 1e5, 100.0, err, False, 0.0, 0, 0,
+                              0, '', 1.0, '', 'draw', tracked_lag0=lag0)
+    rows = [row(1, 0.5, True), row(2, 18.8, True), row(3, 0.4, False), row(4, 0.3, None),
+            row(5, 30.0, False)]
+    assert robustness._lag0_line('rotation', 'hrn', rows) == (
+        'rotation     hrn       tracked 2/4 (gained: 2; lost: 3)')
+    assert robustness._lag0_line('rotation', 'hrn', rows[3:4]) == ''
+    path = tmp_path / 'rows.csv'
+    path.write_text('kind,seed,method,seconds,events_per_s,peak,median_err,lost,lost_s,losses,'
+                    'silent,late,reloc_s,wall_s,note,draw,tracked_lag0\n'
+                    'rotation,7,hrn,10.0,1000.0,50.0,0.4,False,0.0,0,0,0,,1.0,,d,True\n'
+                    'rotation,8,hrn,10.0,1000.0,50.0,0.4,False,0.0,0,0,0,,1.0,,d,\n')
+    a, b = robustness.read_rows(path)
+    assert a.tracked_lag0 is True and b.tracked_lag0 is None
+    lines = robustness.breakdown([a, b], ['rotation'], ['hrn'])
+    assert lines[-1] == 'rotation     hrn       tracked 1/1 (gained: -; lost: -)'
