@@ -50,16 +50,18 @@ class Rejects:
 
 class NoteLog:
     """Logs the notes of a node's core logic (:class:`~hrn_vo_ros.core.events.stream.Note`):
-    rejects counted and logged by ``reject`` (:class:`Rejects`), info as info, warnings as
-    warnings, throttled ones at most once per ``throttle_s()`` per kind."""
+    rejects counted into ``stats`` and logged by :attr:`reject` (:class:`Rejects`, also the
+    node's own), info as info, warnings as warnings, throttled ones at most once per
+    ``throttle_s()`` per kind."""
 
-    def __init__(self, node: Node, reject: Rejects, throttle_s: Callable[[], float]) -> None:
-        self._node, self._reject, self._throttle_s = node, reject, throttle_s
+    def __init__(self, node: Node, stats: NodeStats, throttle_s: Callable[[], float]) -> None:
+        self._node, self._throttle_s = node, throttle_s
+        self.reject = Rejects(node, stats, throttle_s)
         self._throttle = Throttle()
 
     def __call__(self, note: Note) -> None:
         if note.level == 'reject':
-            self._reject(note.kind, note.text)
+            self.reject(note.kind, note.text)
         elif note.level == 'info':
             self._node.get_logger().info(note.text)
         elif not note.throttled or self._throttle.due(note.kind, self._throttle_s()):

@@ -51,7 +51,6 @@ from hrn_vo_ros.nodes.common import (
     NoteLog,
     publish_diagnostics,
     qos,
-    Rejects,
     worst,
 )
 from hrn_vo_ros.nodes.params import declare_config
@@ -73,8 +72,8 @@ class PacketizerNode(Node):
         self._reader = ros_msgs.PacketReader()
         self._camera_info = (CameraInfoInput(self, self._on_camera_info)
                              if self._stream.needs_camera_info else None)
-        self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
-        self._note = NoteLog(self, self._reject, lambda: self._opts.config.log_throttle_s)
+        self._note = NoteLog(self, self.stats, lambda: self._opts.config.log_throttle_s)
+        self._reject = self._note.reject
         self._pub = self.create_publisher(Image, '~/frames', qos(opts.frames_depth))
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_subscription(EventPacket, '~/events', self._on_events,

@@ -38,7 +38,6 @@ from hrn_vo_ros.nodes.common import (
     NoteLog,
     publish_diagnostics,
     qos,
-    Rejects,
     worst,
 )
 from hrn_vo_ros.nodes.outputs import OdometryOutputs
@@ -63,8 +62,8 @@ class ResonatorNode(Node):
             max_pending=opts.max_pending_frames), (cfg.width, cfg.height),
             tolerance_ns=int(opts.clock_tolerance_s * 1e9), counts=self.stats.counts,
             resize=lambda w, h: self._live.sized(self._algo.config, w, h, self._make_hrn))
-        self._reject = Rejects(self, self.stats, lambda: self._opts.config.log_throttle_s)
-        self._note = NoteLog(self, self._reject, lambda: self._opts.config.log_throttle_s)
+        self._note = NoteLog(self, self.stats, lambda: self._opts.config.log_throttle_s)
+        self._reject = self._note.reject
         self._out = OdometryOutputs(self, opts.publish_tf)
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         if opts.publish_static_tf:

@@ -15,13 +15,13 @@ SCRIPT = """
 import rclpy
 from rclpy.node import Node
 from hrn_vo_ros.core.events.stream import Note
-from hrn_vo_ros.nodes.common import NoteLog, Rejects
+from hrn_vo_ros.nodes.common import NoteLog
 from hrn_vo_ros.nodes.stats import NodeStats
 
 rclpy.init()
 node = Node('notes_probe')
 stats = NodeStats()
-log = NoteLog(node, Rejects(node, stats, lambda: 60.0), lambda: 60.0)
+log = NoteLog(node, stats, lambda: 60.0)
 for i in range(3):
     log(Note('warn', 'clock', f'throttled warning {i}', throttled=True))
     log(Note('warn', 'focal', f'plain warning {i}'))
