@@ -177,10 +177,12 @@ def run_task(make_node: Callable[[], N], task: Callable[[N], int],
     """
     node: N | None = None
     code = 0
+    initialised = False
     limit = _StopLimit(stop_limit_s)
     default_stop_signals()
     try:
         rclpy.init(args=args)
+        initialised = True
         limit.watch()
         node = make_node()
         code = task(node)
@@ -190,7 +192,7 @@ def run_task(make_node: Callable[[], N], task: Callable[[N], int],
         rclpy.logging.get_logger(logger).error(str(err))
         code = err.exit_code
     except Exception:
-        if rclpy.ok():          # a real error, not the consequence of a stop signal
+        if not initialised or rclpy.ok():   # a real error, not the consequence of a signal
             raise
         code = interrupted
     finally:

@@ -253,3 +253,13 @@ def test_a_job_whose_clean_up_hangs_ends_within_the_limit() -> None:
     out, err, took = ended(proc, time.monotonic())
     assert proc.returncode == 1 and 'in destroy_node' in err, (proc.returncode, err[-2000:])
     assert took < 5.0 and 'went on' not in out, took
+
+
+def test_a_job_whose_arguments_rclpy_refuses_fails_with_that_error_not_130() -> None:
+    """An error before rclpy is initialised is no stop signal's doing: it is raised (exit 1,
+    rcl's message), not reported as interrupted."""
+    code = ('import sys\nfrom rclpy.node import Node\nfrom hrn_vo_ros.nodes.process import '
+            "run_task\nsys.exit(run_task(Node, lambda n: 0, ['x', '--ros-args', '--remap']))\n")
+    proc = start([sys.executable, '-c', code])
+    _, err, _ = ended(proc, time.monotonic())
+    assert proc.returncode == 1 and "Couldn't parse trailing --remap flag" in err, err[-2000:]
