@@ -371,6 +371,17 @@ class LiveOdometry:
         self.counts['invalid_frames'] += 0 if est.valid else 1
         yield Step(t_ns, est, odo, out, time.perf_counter() - t0)
 
+    def describe(self, cfg: ResonatorConfig, *, adopt_size: bool,
+                 camera_info_topic: str | None) -> str:
+        """The node's start-up line: frame size (or that frames give it), the resonator's
+        factors, the gyro, and where the focal length comes from when a camera_info gives it
+        (``camera_info_topic``; None: ``focal_px`` is set)."""
+        return (f'{cfg.width}x{cfg.height} frames'
+                + (' (or the size of the frames)' if adopt_size else '')
+                + f', factors {"/".join(self.pipeline.estimator.factors)}, IMU {cfg.imu.enabled}'
+                + ('' if camera_info_topic is None else ', focal length from the first '
+                   f'camera_info on {camera_info_topic} (focal_px 0)'))
+
     def diagnostics(self, window_s: float, measured: tuple[str, int, int], cfg: ResonatorConfig,
                     odo: OdometryConfig, camera_info_topic: str
                     ) -> tuple[list[tuple[str, object]], list[tuple[str, str]]]:

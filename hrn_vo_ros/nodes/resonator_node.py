@@ -75,11 +75,9 @@ class ResonatorNode(Node):
         self._camera_info = (CameraInfoInput(self, self._on_camera_info)
                              if cfg.focal_px <= 0.0 else None)
         self.create_timer(opts.diagnostics_period_s, self._on_timer)
-        self.get_logger().info(f'{cfg.width}x{cfg.height} frames' + (
-            ' (or the size of the frames)' if opts.frame_size == 'frames' else '')
-            + f', factors {"/".join(self._hrn.factors)}, IMU {cfg.imu.enabled}' + (
-                '' if self._camera_info is None else ', focal length from the first camera_info'
-                f' on {self._camera_info.topic} (focal_px 0)'))
+        self.get_logger().info(self._live.describe(
+            cfg, adopt_size=opts.frame_size == 'frames',
+            camera_info_topic=None if self._camera_info is None else self._camera_info.topic))
 
     @property
     def _hrn(self) -> ResonatorBackend:

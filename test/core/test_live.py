@@ -353,3 +353,13 @@ def test_live_odometry_owns_the_focal_length_a_camera_info_gives() -> None:
     own = from_dict(ResonatorConfig, {'imu': {'enabled': True}, 'focal_px': 7.0})
     lo.rebuild(own, make)
     assert made[-1].focal_px == 7.0 and lo.focal_for(own, odo) == (7.0, odo)
+
+
+def test_the_start_up_line_says_what_the_resonator_takes() -> None:
+    rot = from_dict(ResonatorConfig, {'imu': {'enabled': True}})
+    lo = live(Scripted())
+    assert lo.describe(rot, adopt_size=False, camera_info_topic=None) == (
+        '96x72 frames, factors h/v/r, IMU True')
+    assert lo.describe(ResonatorConfig(), adopt_size=True, camera_info_topic='/cam/info') == (
+        '96x72 frames (or the size of the frames), factors h/v/r, IMU False, focal length '
+        'from the first camera_info on /cam/info (focal_px 0)')
