@@ -136,31 +136,8 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None,
     or the clean-up's start (:data:`STOP_LIMIT_S`) dumps every thread's stack to stderr and
     exits 1: a hang is bounded and says where it was.
     """
-    node = None
-    code = 0
-    initialised = False
-    limit = _StopLimit(stop_limit_s)
-    default_stop_signals()   # drop the import-time exit (hrn_vo_ros.nodes) before rclpy's own
-    try:
-        rclpy.init(args=args)
-        initialised = True
-        limit.watch()
-        node = make_node()
-        executor = _executor()
-        if executor is not None:
-            rclpy.spin(node, executor=executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ConfigError as err:
-        rclpy.logging.get_logger('hrn_vo_ros').error(f'invalid parameters: {err}')
-        code = 2
-    except Exception:
-        if not initialised or rclpy.ok():   # a real error, not a signal during start-up
-            raise
-    finally:
-        _shut_down(node, limit)
-        limit.disarm()          # the stop signals stay ignored: nothing interrupts this
-    return code
+    return _entry(make_node, _spin, args, interrupted=0, errors=ConfigError,
+                  prefix='invalid parameters: ', logger='hrn_vo_ros', stop_limit_s=stop_limit_s)
 
 
 def run_task(make_node: Callable[[], N], task: Callable[[N], int],
@@ -175,11 +152,29 @@ def run_task(make_node: Callable[[], N], task: Callable[[N], int],
     The clean-up is :func:`run`'s: shielded from further stop signals and bounded by
     ``stop_limit_s`` (a stack dump and exit 1 beyond it).
     """
+    return _entry(make_node, task, args, interrupted=interrupted, errors=HrnVoError, prefix='',
+                  logger=logger, stop_limit_s=stop_limit_s)
+
+
+def _spin(node: Node) -> int:
+    """:func:`run`'s job: spin until shut down (not at all when a signal came first)."""
+    executor = _executor()
+    if executor is not None:
+        rclpy.spin(node, executor=executor)
+    return 0
+
+
+def _entry(make_node: Callable[[], N], task: Callable[[N], int], args: list[str] | None, *,
+           interrupted: int, errors: type[HrnVoError], prefix: str, logger: str,
+           stop_limit_s: float) -> int:
+    """Both entry points: init, make the node, ``task(node)``'s code; a stop signal (or an
+    error it caused) gives ``interrupted``, an ``errors`` exception is logged and gives its
+    ``exit_code``, any other error is raised; the clean-up shielded and time-bounded."""
     node: N | None = None
     code = 0
     initialised = False
     limit = _StopLimit(stop_limit_s)
-    default_stop_signals()
+    default_stop_signals()   # drop the import-time exit (hrn_vo_ros.nodes) before rclpy's own
     try:
         rclpy.init(args=args)
         initialised = True
@@ -188,8 +183,8 @@ def run_task(make_node: Callable[[], N], task: Callable[[N], int],
         code = task(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = interrupted
-    except HrnVoError as err:
-        rclpy.logging.get_logger(logger).error(str(err))
+    except errors as err:
+        rclpy.logging.get_logger(logger).error(f'{prefix}{err}')
         code = err.exit_code
     except Exception:
         if not initialised or rclpy.ok():   # a real error, not the consequence of a signal
@@ -197,5 +192,5 @@ def run_task(make_node: Callable[[], N], task: Callable[[N], int],
         code = interrupted
     finally:
         _shut_down(node, limit)
-        limit.disarm()
+        limit.disarm()          # the stop signals stay ignored: nothing interrupts this
     return code
