@@ -167,7 +167,13 @@ class BagPlayer(Node):
 def main(args: list[str] | None = None) -> int:
     """Console script ``bag_player``: play, report, exit 0 (a package error's exit code, e.g. 4
     for a bad bag; 130 when stopped; the clean-up is bounded: ``nodes/process.py``)."""
-    return run_task(BagPlayer, lambda node: (node.play(), 0)[1], args, logger='bag_player')
+    return run_task(BagPlayer, _play, args, logger='bag_player')
+
+
+def _play(node: BagPlayer) -> int:
+    """``bag_player``'s job: the whole bag (its counts are logged by ``play``), exit 0."""
+    node.play()
+    return 0
 
 
 if __name__ == '__main__':
