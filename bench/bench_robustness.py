@@ -316,7 +316,12 @@ def _run(method: str, kind: str, seq: Sequence, t: np.ndarray, imgs: np.ndarray
 def is_lost(r: Row) -> bool:
     """Whether a row is not tracked: a loss, a median error above the threshold, or no
     evaluation (module docstring; also applied to rows read from older CSVs)."""
-    return r.lost or not r.median_err <= THRESHOLD[r.kind]
+    return lost_verdict(r.lost, r.median_err, r.kind)
+
+
+def lost_verdict(lost: bool, median_err: float, kind: str) -> bool:
+    """Not tracked: a loss, or a median error not within the kind's threshold (NaN, inf)."""
+    return lost or not median_err <= THRESHOLD[kind]
 
 
 def late_flags(st: np.ndarray, eps: list[tuple[int, int, float | None]]) -> int:
@@ -434,8 +439,8 @@ def tracked_at_lag0(seq: Sequence, est: EstimateSeries, kind: str, res: Any,
     except Exception:
         return None
     keep = res.series.t_s >= START_S
-    return not losses(res.series.t_s[keep], res.series.err[keep], THRESHOLD[kind]) \
-        and med <= THRESHOLD[kind]
+    eps = losses(res.series.t_s[keep], res.series.err[keep], THRESHOLD[kind])
+    return not lost_verdict(bool(eps), med, kind)
 
 
 def silent_tracking_calibrated(seq: Sequence, est: EstimateSeries, kind: str, lag_s: float,
