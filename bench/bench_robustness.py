@@ -38,7 +38,9 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   stays below the threshold for 0.5 s; losses that never recover count in "never";
 * **breakdown**: tracked per scene class, event-rate band, background-noise band and band of
   the *junk share* (CSV column ``junk``: the draw's background-noise and hot-pixel events over
-  all its events, from its simulator settings; above half, the frames are mostly noise); a
+  all its events, from its simulator settings; above half, the frames are mostly noise) and
+  band of the *scene event rate* (the events that are neither, ``(1 - junk) x events/s``: the
+  best single predictor of a track on the family); a
   last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
   ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
   evaluation's doing or the estimator's own delay) and names those it gains and loses.
@@ -530,6 +532,17 @@ RATE_BANDS = ((0.0, 2e4, '<20k ev/s'), (2e4, 1e5, '20-100k'), (1e5, math.inf, '>
 JUNK_BANDS = ((0.0, 0.15, 'junk <15%'), (0.15, 0.5, '15-50%'), (0.5, math.inf, '>=50%'))
 
 
+#: Bands of the scene event rate (events/s that are neither noise nor hot pixels,
+#: :func:`scene_rate`): below 10 k a draw gives the frames too few edges to follow.
+SCENE_BANDS = ((0.0, 1e4, 'scene <10k ev/s'), (1e4, 5e4, '10-50k'), (5e4, math.inf, '>=50k'))
+
+
+def scene_rate(r: Row) -> float:
+    """The draw's scene events per second: its event rate less the junk share (NaN where
+    the row has no junk share)."""
+    return (1.0 - r.junk) * r.events_per_s
+
+
 def junk_share(d: Any, events_per_s: float) -> float:
     """The share of a draw's events that are background noise or hot pixels, from its
     simulator settings (noise Hz per sensor pixel, hot pixels and their rate) over its
@@ -574,11 +587,11 @@ def unevaluable(r: Row) -> str:
 
 
 def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str]:
-    """Tracked / draws per scene class, event-rate, background-noise and junk-share band, and the
-    unevaluated rows by cause: where each method fails."""
-    lines = ['tracked per scene class, event rate, background noise (Hz per pixel) and share '
-             'of noise and hot-pixel events (junk); unevaluated: too few estimates (few), an '
-             'estimate that never moves (still), other']
+    """Tracked / draws per scene class, event-rate, background-noise, junk-share and
+    scene-rate band, and the unevaluated rows by cause: where each method fails."""
+    lines = ['tracked per scene class, event rate, background noise (Hz per pixel), share '
+             'of noise and hot-pixel events (junk) and rate of the other events (scene); '
+             'unevaluated: too few estimates (few), an estimate that never moves (still), other']
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method]
@@ -589,7 +602,8 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                 sub = [r for r in rs if scene_of(r) == scene]
                 parts.append(f'{scene} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
             for bands, value in ((RATE_BANDS, lambda r: r.events_per_s),
-                                 (NOISE_BANDS, noise_of), (JUNK_BANDS, lambda r: r.junk)):
+                                 (NOISE_BANDS, noise_of), (JUNK_BANDS, lambda r: r.junk),
+                                 (SCENE_BANDS, scene_rate)):
                 for lo, hi, name in bands:
                     sub = [r for r in rs if (x := value(r)) is not None and lo <= x < hi]
                     if sub:

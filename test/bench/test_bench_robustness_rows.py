@@ -66,8 +66,8 @@ def test_a_preset_sequence_is_cached_under_its_own_name(tmp_path: Path,
 
 def test_the_junk_share_of_a_draw_and_its_band(tmp_path: Path) -> None:
     """Fresh rotation 10045: 0.023 Hz of noise on 240x180 pixels (994 events/s) and 30 hot
-    pixels at 561.7 Hz (16851) of 22593 events/s: 79 %, in the top band; a CSV written before
-    the column reads as unknown and falls in no band."""
+    pixels at 561.7 Hz (16851) of 22593 events/s: 79 %, in the top band; the scene event rate
+    is the rest; a CSV written before the column reads as unknown and falls in no band."""
     from hrn_vo_ros.core.sim.family import draw
     d = draw('rotation', 10045)
     c = d.config
@@ -81,13 +81,16 @@ def test_the_junk_share_of_a_draw_and_its_band(tmp_path: Path) -> None:
             for s, err, j in [(1, 0.5, 0.05), (2, 0.5, 0.79), (3, 50.0, 0.5), (4, 0.5, 0.15)]]
     line = robustness.breakdown(rows, ['rotation'], ['hrn'])[1]
     assert 'junk <15% 1/1, 15-50% 1/1, >=50% 1/2' in line
+    # scene events/s (1 - junk) x 1e5: 95 k, 21 k, 50 k (the band's lower edge), 85 k
+    assert [robustness.scene_rate(r) for r in rows] == pytest.approx([95e3, 21e3, 50e3, 85e3])
+    assert line.endswith('>=50% 1/2, 10-50k 1/1, >=50k 2/3, unevaluated few 0 still 0 other 0')
     path = tmp_path / 'old.csv'
     header = ('kind,seed,method,seconds,events_per_s,peak,median_err,lost,lost_s,losses,silent,'
               'late,reloc_s,wall_s,note,draw')
     path.write_text(header + '\nrotation,7,hrn,10.0,1000.0,50.0,0.4,False,0.0,0,0,0,,1.0,,d\n')
     (row,) = robustness.read_rows(path)
-    assert math.isnan(row.junk) and 'junk' not in robustness.breakdown(
-        [row], ['rotation'], ['hrn'])[1]
+    old = robustness.breakdown([row], ['rotation'], ['hrn'])[1]
+    assert math.isnan(row.junk) and 'junk' not in old and 'scene <10k' not in old
 
 
 def test_the_lag0_diagnostic_names_what_the_lag_search_moved(tmp_path: Path) -> None:
