@@ -678,11 +678,32 @@ def read_rows(path: Path) -> list[Row]:
 
 
 def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:
-    """Per kind, the per-sequence median errors of every method (strip + box plot)."""
+    """Per kind, the per-sequence median errors of every method (strip + box plot) and, below,
+    each draw's median error against its scene event rate (:func:`scene_rate`; lost draws as
+    crosses, unevaluated ones on the top edge; rows without a junk share are left out)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, len(kinds), figsize=(4.5 * len(kinds), 3.8), squeeze=False)
+    fig, axes = plt.subplots(2, len(kinds), figsize=(4.5 * len(kinds), 7.6), squeeze=False)
+    for ax, kind in zip(axes[1], kinds, strict=True):
+        unit = 1.0 if kind == 'rotation' else 100.0
+        top = THRESHOLD[kind] * unit * 30.0              # where unevaluated draws are drawn
+        for method in methods:
+            rs = [r for r in rows if r.kind == kind and r.method == method
+                  and math.isfinite(scene_rate(r))]
+            x = np.array([scene_rate(r) for r in rs])
+            y = np.array([min(r.median_err * unit, top) if math.isfinite(r.median_err) else top
+                          for r in rs])
+            lost = np.array([is_lost(r) for r in rs], dtype=bool)
+            (dots,) = ax.plot(x[~lost], y[~lost], 'o', ms=3, alpha=0.8, label=method)
+            ax.plot(x[lost], y[lost], 'x', ms=4, alpha=0.8, color=dots.get_color())
+        ax.axhline(THRESHOLD[kind] * unit, ls='--', c='r', lw=0.8)
+        ax.set_xscale('log')
+        ax.set_yscale('log')
+        ax.set_xlabel('scene events/s (noise and hot pixels removed)')
+        ax.set_ylabel('median error (deg)' if kind == 'rotation' else 'median error (cm)')
+        ax.set_title(f'{kind}: x lost, top edge unevaluated', fontsize=9)
+        ax.legend(fontsize=7)
     for ax, kind in zip(axes[0], kinds, strict=True):
         data = []
         for method in methods:
