@@ -685,40 +685,37 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(2, len(kinds), figsize=(4.5 * len(kinds), 7.6), squeeze=False)
-    for ax, kind in zip(axes[1], kinds, strict=True):
-        unit = 1.0 if kind == 'rotation' else 100.0
-        top = THRESHOLD[kind] * unit * 30.0              # where unevaluated draws are drawn
-        for method in methods:
-            rs = [r for r in rows if r.kind == kind and r.method == method
-                  and math.isfinite(scene_rate(r))]
-            x = np.array([scene_rate(r) for r in rs])
-            y = np.array([min(r.median_err * unit, top) if math.isfinite(r.median_err) else top
-                          for r in rs])
-            lost = np.array([is_lost(r) for r in rs], dtype=bool)
-            (dots,) = ax.plot(x[~lost], y[~lost], 'o', ms=3, alpha=0.8, label=method)
-            ax.plot(x[lost], y[lost], 'x', ms=4, alpha=0.8, color=dots.get_color())
-        ax.axhline(THRESHOLD[kind] * unit, ls='--', c='r', lw=0.8)
-        ax.set_xscale('log')
-        ax.set_yscale('log')
-        ax.set_xlabel('scene events/s (noise and hot pixels removed)')
-        ax.set_ylabel('median error (deg)' if kind == 'rotation' else 'median error (cm)')
-        ax.set_title(f'{kind}: x lost, top edge unevaluated', fontsize=9)
-        ax.legend(fontsize=7)
-    for ax, kind in zip(axes[0], kinds, strict=True):
+    for (box, scatter), kind in zip(axes.T, kinds, strict=True):
+        deg = UNIT[kind] == 'deg'
+        scale = 1.0 if deg else 100.0                     # plotted in deg or cm
+        top = THRESHOLD[kind] * scale * 30.0              # where unevaluated draws are drawn
         data = []
         for method in methods:
-            v = np.array([r.median_err for r in rows if r.kind == kind and r.method == method])
+            mine = [r for r in rows if r.kind == kind and r.method == method]
+            v = np.array([r.median_err for r in mine])
             v = np.where(np.isfinite(v), v, np.nan)
-            data.append((v * (1 if kind == 'rotation' else 100))[~np.isnan(v)])
-        ax.boxplot(data, showfliers=False)
+            data.append((v * scale)[~np.isnan(v)])
+            pts = [(rate, r) for r in mine if math.isfinite(rate := scene_rate(r))]
+            x = np.array([rate for rate, _ in pts])
+            y = np.array([min(r.median_err * scale, top) if math.isfinite(r.median_err)
+                          else top for _, r in pts])
+            lost = np.array([is_lost(r) for _, r in pts], dtype=bool)
+            (dots,) = scatter.plot(x[~lost], y[~lost], 'o', ms=3, alpha=0.8, label=method)
+            scatter.plot(x[lost], y[lost], 'x', ms=4, alpha=0.8, color=dots.get_color())
+        box.boxplot(data, showfliers=False)
         for i, v in enumerate(data):
-            ax.plot(np.full(len(v), i + 1.0) + np.linspace(-0.15, 0.15, len(v)), v, '.',
-                    alpha=0.7)
-        ax.axhline(THRESHOLD[kind] * (1 if kind == 'rotation' else 100), ls='--', c='r', lw=0.8)
-        ax.set_xticks(range(1, len(methods) + 1), methods)
-        ax.set_yscale('log')
-        ax.set_title(kind)
-        ax.set_ylabel('median error (deg)' if kind == 'rotation' else 'median error (cm)')
+            box.plot(np.full(len(v), i + 1.0) + np.linspace(-0.15, 0.15, len(v)), v, '.',
+                     alpha=0.7)
+        box.set_xticks(range(1, len(methods) + 1), methods)
+        box.set_title(kind)
+        scatter.set_xscale('log')
+        scatter.set_xlabel('scene events/s (noise and hot pixels removed)')
+        scatter.set_title(f'{kind}: x lost, top edge unevaluated', fontsize=9)
+        scatter.legend(fontsize=7)
+        for ax in (box, scatter):
+            ax.axhline(THRESHOLD[kind] * scale, ls='--', c='r', lw=0.8)
+            ax.set_yscale('log')
+            ax.set_ylabel(f'median error ({"deg" if deg else "cm"})')
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
