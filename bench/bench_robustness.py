@@ -39,8 +39,10 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
 * **breakdown**: tracked per scene class, event-rate band, background-noise band and band of
   the *junk share* (CSV column ``junk``: the draw's background-noise and hot-pixel events over
   all its events, from its simulator settings; above half, the frames are mostly noise) and
-  band of the *scene event rate* (the events that are neither, ``(1 - junk) x events/s``: the
-  best single predictor of a track on the family); a
+  band of the *scene event rate* (the events that are neither, ``(1 - junk) x events/s``),
+  and band of the *motion per frame* (CSV columns ``frame_deg``, ``frame_m``: the 95th
+  percentile of the camera's turn and travel from one frame to the next, :func:`frame_motion`;
+  with the scene rate the best predictors of a track on the family); a
   last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
   ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
   evaluation's doing or the estimator's own delay) and names those it gains and loses.
@@ -113,6 +115,7 @@ from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
 from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
+from hrn_vo_ros.core.odometry.geometry import quat_to_matrix  # noqa: E402
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402
 from hrn_vo_ros.core.pipeline import OdometryPipeline  # noqa: E402
 from hrn_vo_ros.core.sim.family import (  # noqa: E402
@@ -171,6 +174,9 @@ class Row:
                                   # pixels (:func:`junk_share`; capped at 1)
     tracked_lag0: bool | None = None   # tracked with the protocol's lag fixed at 0 (None: not
                                        # evaluated)
+    frame_deg: float = math.nan   # the camera's turn from one frame to the next, 95th
+                                  # percentile over the draw (deg; :func:`frame_motion`)
+    frame_m: float = math.nan     # ... and its travel (m)
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -423,7 +429,8 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         out.append(Row(kind, seed, method, seconds, info['events_per_s'], peak, med, lost, lost_s,
                        len(eps), silent, late, reloc, wall, note,
                        d.summary(), scale, silent_tc, late_tc, lag,
-                       junk_share(d, info['events_per_s']), tracked0))
+                       junk_share(d, info['events_per_s']), tracked0,
+                       *frame_motion(seq.groundtruth, t)))
     return out
 
 
@@ -543,6 +550,40 @@ def scene_rate(r: Row) -> float:
     return (1.0 - r.junk) * r.events_per_s
 
 
+#: Bands of the camera's motion per frame (:func:`frame_motion`, the 95th percentile over a
+#: draw): the turn in degrees for rotation, the travel in cm for translation and the arm.
+#: Above about 4° per frame (5.5 px at the configs' 79.6 px focal length) a frame-based
+#: tracker without a gyro must find the frame far from its prediction, in a frame smeared by
+#: that motion.
+MOTION_BANDS = {
+    'rotation': ((0.0, 2.0, '<2 deg/frame'), (2.0, 4.0, '2-4'), (4.0, math.inf, '>=4')),
+    'translation': ((0.0, 0.5, '<0.5 cm/frame'), (0.5, 1.0, '0.5-1'), (1.0, math.inf, '>=1')),
+}
+
+
+def frame_motion(gt: Any, t_frames: np.ndarray, q: float = 95.0) -> tuple[float, float]:
+    """The camera's motion from each frame to the next: the ``q``-th percentile over the
+    frames of the turn (degrees, the geodesic angle between the orientations) and of the
+    travel (metres), with the ground truth ``gt`` interpolated to the frame times ``t_frames``
+    (int64 ns; orientations spherically, positions linearly; times outside the ground truth
+    clamp to its ends). NaN for fewer than two frames."""
+    from scipy.spatial.transform import Rotation, Slerp
+    if len(t_frames) < 2:
+        return math.nan, math.nan
+    tg = (np.asarray(gt.t, np.int64) - int(gt.t[0])) * 1e-9
+    tf = np.clip((np.asarray(t_frames, np.int64) - int(gt.t[0])) * 1e-9, tg[0], tg[-1])
+    rot = Slerp(tg, Rotation.from_matrix(quat_to_matrix(gt.quat)))(tf)
+    turn = np.degrees((rot[:-1].inv() * rot[1:]).magnitude())
+    pos = np.stack([np.interp(tf, tg, np.asarray(gt.pos)[:, k]) for k in range(3)], axis=1)
+    travel = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    return float(np.percentile(turn, q)), float(np.percentile(travel, q))
+
+
+def motion_of(r: Row) -> float:
+    """A row's motion per frame in its kind's band unit: degrees for rotation, cm else."""
+    return r.frame_deg if r.kind == 'rotation' else 100.0 * r.frame_m
+
+
 def junk_share(d: Any, events_per_s: float) -> float:
     """The share of a draw's events that are background noise or hot pixels, from its
     simulator settings (noise Hz per sensor pixel, hot pixels and their rate) over its
@@ -590,8 +631,9 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
     """Tracked / draws per scene class, event-rate, background-noise, junk-share and
     scene-rate band, and the unevaluated rows by cause: where each method fails."""
     lines = ['tracked per scene class, event rate, background noise (Hz per pixel), share '
-             'of noise and hot-pixel events (junk) and rate of the other events (scene); '
-             'unevaluated: too few estimates (few), an estimate that never moves (still), other']
+             'of noise and hot-pixel events (junk), rate of the other events (scene) and the '
+             "camera's motion from one frame to the next (95th percentile); unevaluated: too "
+             'few estimates (few), an estimate that never moves (still), other']
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method]
@@ -603,7 +645,9 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
                 parts.append(f'{scene} {sum(not is_lost(r) for r in sub)}/{len(sub)}')
             for bands, value in ((RATE_BANDS, lambda r: r.events_per_s),
                                  (NOISE_BANDS, noise_of), (JUNK_BANDS, lambda r: r.junk),
-                                 (SCENE_BANDS, scene_rate)):
+                                 (SCENE_BANDS, scene_rate),
+                                 (MOTION_BANDS.get(kind, MOTION_BANDS['translation']),
+                                  motion_of)):
                 for lo, hi, name in bands:
                     sub = [r for r in rs if (x := value(r)) is not None and lo <= x < hi]
                     if sub:
