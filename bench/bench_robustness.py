@@ -723,13 +723,17 @@ def read_rows(path: Path) -> list[Row]:
 
 def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:
     """Per kind, the per-sequence median errors of every method (strip + box plot) and, below,
-    each draw's median error against its scene event rate (:func:`scene_rate`; lost draws as
-    crosses, unevaluated ones on the top edge; rows without a junk share are left out)."""
+    each draw's median error against its scene event rate (:func:`scene_rate`) and against
+    its motion per frame (:func:`motion_of`; lost draws as crosses, unevaluated ones on the top
+    edge; rows without the figure, from older CSVs, are left out of that panel)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(2, len(kinds), figsize=(4.5 * len(kinds), 7.6), squeeze=False)
-    for (box, scatter), kind in zip(axes.T, kinds, strict=True):
+    fig, axes = plt.subplots(3, len(kinds), figsize=(4.5 * len(kinds), 11.0), squeeze=False)
+    panels = ((scene_rate, 'log', lambda kind: 'scene events/s (noise and hot pixels removed)'),
+              (motion_of, 'log', lambda kind: 'camera turn per frame, 95th pct (deg)'
+               if kind == 'rotation' else 'camera travel per frame, 95th pct (cm)'))
+    for (box, *scatters), kind in zip(axes.T, kinds, strict=True):
         deg = UNIT[kind] == 'deg'
         scale = 1.0 if deg else 100.0                     # plotted in deg or cm
         top = THRESHOLD[kind] * scale * 30.0              # where unevaluated draws are drawn
@@ -739,24 +743,26 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
             v = np.array([r.median_err for r in mine])
             v = np.where(np.isfinite(v), v, np.nan)
             data.append((v * scale)[~np.isnan(v)])
-            pts = [(rate, r) for r in mine if math.isfinite(rate := scene_rate(r))]
-            x = np.array([rate for rate, _ in pts])
-            y = np.array([min(r.median_err * scale, top) if math.isfinite(r.median_err)
-                          else top for _, r in pts])
-            lost = np.array([is_lost(r) for _, r in pts], dtype=bool)
-            (dots,) = scatter.plot(x[~lost], y[~lost], 'o', ms=3, alpha=0.8, label=method)
-            scatter.plot(x[lost], y[lost], 'x', ms=4, alpha=0.8, color=dots.get_color())
+            for scatter, (value, _, _) in zip(scatters, panels, strict=True):
+                pts = [(x, r) for r in mine if math.isfinite(x := value(r))]
+                x = np.array([x for x, _ in pts])
+                y = np.array([min(r.median_err * scale, top) if math.isfinite(r.median_err)
+                              else top for _, r in pts])
+                lost = np.array([is_lost(r) for _, r in pts], dtype=bool)
+                (dots,) = scatter.plot(x[~lost], y[~lost], 'o', ms=3, alpha=0.8, label=method)
+                scatter.plot(x[lost], y[lost], 'x', ms=4, alpha=0.8, color=dots.get_color())
         box.boxplot(data, showfliers=False)
         for i, v in enumerate(data):
             box.plot(np.full(len(v), i + 1.0) + np.linspace(-0.15, 0.15, len(v)), v, '.',
                      alpha=0.7)
         box.set_xticks(range(1, len(methods) + 1), methods)
         box.set_title(kind)
-        scatter.set_xscale('log')
-        scatter.set_xlabel('scene events/s (noise and hot pixels removed)')
-        scatter.set_title(f'{kind}: x lost, top edge unevaluated', fontsize=9)
-        scatter.legend(fontsize=7)
-        for ax in (box, scatter):
+        for scatter, (_, xscale, label) in zip(scatters, panels, strict=True):
+            scatter.set_xscale(xscale)
+            scatter.set_xlabel(label(kind))
+            scatter.set_title(f'{kind}: x lost, top edge unevaluated', fontsize=9)
+            scatter.legend(fontsize=7)
+        for ax in (box, *scatters):
             ax.axhline(THRESHOLD[kind] * scale, ls='--', c='r', lw=0.8)
             ax.set_yscale('log')
             ax.set_ylabel(f'median error ({"deg" if deg else "cm"})')
