@@ -41,7 +41,8 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   all its events, from its simulator settings; above half, the frames are mostly noise) and
   band of the *scene event rate* (the events that are neither, ``(1 - junk) x events/s``),
   and band of the *motion per frame* (CSV columns ``frame_deg``, ``frame_m``: the 95th
-  percentile of the camera's turn and travel from one frame to the next, :func:`frame_motion`;
+  percentile of the camera's turn and travel from one frame to the next, ``motion_between``
+  of ``core/evaluation/samples.py``;
   with the scene rate the best predictors of a track on the family); a
   last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
   ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
@@ -111,11 +112,11 @@ from bench_accuracy import CASES  # noqa: E402
 from hrn_vo_ros.cli.run import parse_size  # noqa: E402
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
+from hrn_vo_ros.core.evaluation.samples import motion_between  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
 from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
 from hrn_vo_ros.core.hrn.backends import BackendConfig, make_backend  # noqa: E402
-from hrn_vo_ros.core.odometry.geometry import quat_to_matrix  # noqa: E402
 from hrn_vo_ros.core.odometry.imu import GyroIntegrator  # noqa: E402
 from hrn_vo_ros.core.pipeline import OdometryPipeline  # noqa: E402
 from hrn_vo_ros.core.sim.family import (  # noqa: E402
@@ -175,7 +176,7 @@ class Row:
     tracked_lag0: bool | None = None   # tracked with the protocol's lag fixed at 0 (None: not
                                        # evaluated)
     frame_deg: float = math.nan   # the camera's turn from one frame to the next, 95th
-                                  # percentile over the draw (deg; :func:`frame_motion`)
+                                  # percentile over the draw (deg; motion_between)
     frame_m: float = math.nan     # ... and its travel (m)
 
 
@@ -430,7 +431,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
                        len(eps), silent, late, reloc, wall, note,
                        d.summary(), scale, silent_tc, late_tc, lag,
                        junk_share(d, info['events_per_s']), tracked0,
-                       *frame_motion(seq.groundtruth, t)))
+                       *motion_between(seq.groundtruth, t)))
     return out
 
 
@@ -550,7 +551,7 @@ def scene_rate(r: Row) -> float:
     return (1.0 - r.junk) * r.events_per_s
 
 
-#: Bands of the camera's motion per frame (:func:`frame_motion`, the 95th percentile over a
+#: Bands of the camera's motion per frame (``motion_between``, the 95th percentile over a
 #: draw): the turn in degrees for rotation, the travel in cm for translation and the arm.
 #: Above about 4° per frame (5.5 px at the configs' 79.6 px focal length) a frame-based
 #: tracker without a gyro must find the frame far from its prediction, in a frame smeared by
@@ -559,24 +560,6 @@ MOTION_BANDS = {
     'rotation': ((0.0, 2.0, '<2 deg/frame'), (2.0, 4.0, '2-4'), (4.0, math.inf, '>=4')),
     'translation': ((0.0, 0.5, '<0.5 cm/frame'), (0.5, 1.0, '0.5-1'), (1.0, math.inf, '>=1')),
 }
-
-
-def frame_motion(gt: Any, t_frames: np.ndarray, q: float = 95.0) -> tuple[float, float]:
-    """The camera's motion from each frame to the next: the ``q``-th percentile over the
-    frames of the turn (degrees, the geodesic angle between the orientations) and of the
-    travel (metres), with the ground truth ``gt`` interpolated to the frame times ``t_frames``
-    (int64 ns; orientations spherically, positions linearly; times outside the ground truth
-    clamp to its ends). NaN for fewer than two frames."""
-    from scipy.spatial.transform import Rotation, Slerp
-    if len(t_frames) < 2:
-        return math.nan, math.nan
-    tg = (np.asarray(gt.t, np.int64) - int(gt.t[0])) * 1e-9
-    tf = np.clip((np.asarray(t_frames, np.int64) - int(gt.t[0])) * 1e-9, tg[0], tg[-1])
-    rot = Slerp(tg, Rotation.from_matrix(quat_to_matrix(gt.quat)))(tf)
-    turn = np.degrees((rot[:-1].inv() * rot[1:]).magnitude())
-    pos = np.stack([np.interp(tf, tg, np.asarray(gt.pos)[:, k]) for k in range(3)], axis=1)
-    travel = np.linalg.norm(np.diff(pos, axis=0), axis=1)
-    return float(np.percentile(turn, q)), float(np.percentile(travel, q))
 
 
 def motion_of(r: Row) -> float:

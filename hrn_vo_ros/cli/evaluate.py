@@ -18,6 +18,9 @@ the next frame) and the median error of the evaluated samples per state (the JSO
 not the protocol; needs that column) fits the calibration on the estimates in the given states
 only: when the track was lost inside the calibration segment, the protocol's fit (and so every
 error) describes the lost output, and this shows what the tracked part alone gives.
+The table's last line (and the JSON's ``motion``) gives the 95th percentile of the camera's
+turn and travel from one estimate to the next, i.e. what one event frame spans; a rotation
+turning 4° or more per frame gets a note (the network without a gyro loses most tracks there).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from hrn_vo_ros.core.evaluation.protocol import (
     lag_scan,
     ROTATION_CONVENTIONS,
 )
+from hrn_vo_ros.core.evaluation.samples import motion_between
 from hrn_vo_ros.errors import ConfigError
 from hrn_vo_ros.io.ecd import read_groundtruth
 from hrn_vo_ros.io.estimates import read_estimate_file, STATES
@@ -135,6 +139,22 @@ def format_states(summary: dict[str, dict[str, float | None]], err_label: str) -
     return '\n'.join(lines)
 
 
+#: The camera's turn between frames from which the network without a gyro loses most tracks
+#: (fresh rotation draws of the simulator family: 3 of 28 tracked; docs/results.md).
+FAST_TURN_DEG = 4.0
+
+
+def motion_line(kind: str, turn_deg: float, travel_m: float) -> str:
+    """The camera's motion between estimates (95th percentile; one estimate per event frame:
+    the motion a frame spans), with a note where a rotation turns too far per frame."""
+    line = (f'motion between estimates (95th percentile): turn {turn_deg:.2f} deg, travel '
+            f'{100.0 * travel_m:.2f} cm')
+    if kind == 'rotation' and turn_deg >= FAST_TURN_DEG:
+        line += (f'; at {FAST_TURN_DEG:g} deg or more per frame the network without a gyro '
+                 'loses most tracks: fewer events_per_frame or the gyro (docs/demo.md)')
+    return line
+
+
 def run(args: argparse.Namespace) -> int:
     """Evaluate, print, optionally plot."""
     gt = read_groundtruth(args.dataset)
@@ -151,6 +171,9 @@ def run(args: argparse.Namespace) -> int:
     res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag,
                    convention=args.convention, roll_zero_s=args.roll_zero, calib_use=use)
     out = res.to_dict()
+    turn, travel = motion_between(gt, est.t)
+    out['motion'] = {'turn_deg_p95': round(turn, 4), 'travel_m_p95': round(travel, 6)}
+    motion_text = motion_line(args.kind, turn, travel)
     states_text = ''
     if ef.state is not None:
         summary = state_summary(res, est.t, ef.state, int(gt.t[0]))
@@ -179,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
                                        if ef.state is not None else None))
     if not args.json:
         echo(format_table(res))
+        echo(motion_text)
         if states_text:
             echo(states_text)
         if scan_text:

@@ -94,6 +94,20 @@ def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
     assert any(line.startswith('median_angle_deg') for line in out)
     result = json.loads(out[-1])
     assert result['metrics']['median_angle_deg'] < 0.1
+    # the turn from one estimate to the next (1/150 s), from the trace of the relative
+    # rotation of the ground truth at the estimate times (linear in the angles: the same as
+    # the geodesic interpolation to far below the rounding)
+    te = np.arange(0.01, 19.99, 1 / 150)
+    Rg = euler_ptr_to_matrix(0.3 * np.sin(0.5 * te), 0.2 * np.sin(0.8 * te + 1),
+                             0.6 * np.sin(0.3 * te))
+    rel = np.einsum('nji,njk->nik', Rg[:-1], Rg[1:])
+    cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1, 1)
+    want = float(np.percentile(np.degrees(np.arccos(cos)), 95))
+    assert 0.09 < want < 0.11
+    assert result['motion']['turn_deg_p95'] == pytest.approx(want, abs=2e-4)
+    assert result['motion']['travel_m_p95'] == 0
+    assert f'motion between estimates (95th percentile): turn {want:.2f} deg, travel 0.00 cm' \
+        in out
     assert png.stat().st_size > 10_000
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
                  '--calib', 'full']) == 0

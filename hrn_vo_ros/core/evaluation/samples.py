@@ -110,6 +110,26 @@ def interp_gt(gt_t: F64, gt_R: F64, gt_p: F64, t: F64) -> tuple[F64, F64]:
     return R, p
 
 
+def motion_between(gt: Trajectory, t_ns: NDArray[np.int64], q: float = 95.0
+                   ) -> tuple[float, float]:
+    """The camera's motion from each of the times ``t_ns`` to the next (between event frames:
+    the motion one frame spans): the ``q``-th percentile of the turn (degrees, the geodesic
+    angle between the orientations) and of the travel (metres), the ground truth interpolated
+    as :func:`interp_gt` (times outside it count as its first or last pose). NaN for fewer
+    than two times.
+
+    Shapes:
+        t_ns: (n,) int64 ns, non-decreasing.
+    """
+    if len(t_ns) < 2:
+        return float('nan'), float('nan')
+    g = GroundTruthArrays.from_trajectory(gt, 'swing-twist')
+    R, p = interp_gt(g.t, g.R, g.p, np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
+    turn = np.degrees(np.linalg.norm(so3_log(np.swapaxes(R[:-1], 1, 2) @ R[1:]), axis=1))
+    travel = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    return float(np.percentile(turn, q)), float(np.percentile(travel, q))
+
+
 def roll_correlation(t: F64, r: F64, gt: GroundTruthArrays) -> float:
     """Pearson correlation of the raw roll with the ground-truth roll (0 if either is flat)."""
     roll_gt_at = np.interp(t, gt.t, gt.roll)

@@ -389,3 +389,26 @@ def test_umeyama_scale_keeps_the_reflection_sign() -> None:
     assert np.linalg.det(R) > 0
     assert s == pytest.approx(abs(best[1]), rel=1e-3)  # -s with R(a + pi) is the same fit
     assert s < 2.4  # the scale of the mirrored fit would be 2.5
+
+
+def test_motion_between_frames_of_a_known_trajectory() -> None:
+    """A camera that turns about its optical axis at 100°/s and moves along x at 0.5 m/s,
+    ground truth every 4 ms from 1 s (the first pose not at 0): times 10, 10, 30 and 10.5 ms
+    apart turn 1, 1, 3 and 1.05° and travel 0.5, 0.5, 1.5 and 0.525 cm, between ground-truth
+    samples too; the 95th percentile of [1, 1, 1.05, 3] is 1.05 + 0.85 x 1.95; a time past
+    the ground truth's end counts as its last pose; one time gives NaN."""
+    from hrn_vo_ros.core.evaluation.samples import motion_between
+    tg = 1_000_000_000 + np.arange(0, 251) * 4_000_000          # 1 s .. 2 s
+    ang = np.radians(100.0) * (tg - tg[0]) * 1e-9
+    quat = np.stack([0 * ang, 0 * ang, np.sin(ang / 2), np.cos(ang / 2)], axis=1)
+    pos = np.stack([0.5 * (tg - tg[0]) * 1e-9, 0 * ang, 0 * ang], axis=1)
+    gt = Trajectory(tg.astype(np.int64), pos, quat)
+    ms = np.array([0.0, 10.0, 20.0, 50.0, 60.5])
+    tf = (tg[0] + ms * 1e6).astype(np.int64)
+    deg, m = motion_between(gt, tf)
+    assert deg == pytest.approx(1.05 + 0.85 * 1.95, abs=1e-9)
+    assert m == pytest.approx(0.01 * (1.05 + 0.85 * 1.95) / 2.0, abs=1e-12)
+    assert motion_between(gt, tf, q=50.0)[0] == pytest.approx(1.025, abs=1e-9)
+    late = np.array([tg[-1] - 10_000_000, tg[-1] + 500_000_000], np.int64)
+    assert motion_between(gt, late)[0] == pytest.approx(1.0, abs=1e-9)
+    assert all(np.isnan(x) for x in motion_between(gt, tf[:1]))
