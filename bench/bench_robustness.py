@@ -552,19 +552,21 @@ def scene_rate(r: Row) -> float:
 
 
 #: Bands of the camera's motion per frame (``motion_between``, the 95th percentile over a
-#: draw): the turn in degrees for rotation, the travel in cm for translation and the arm.
+#: draw), by the kind's :data:`UNIT`: the turn in degrees (rotation), the travel in cm (the
+#: kinds measured in metres: translation and the arm).
 #: Above about 4° per frame (5.5 px at the configs' 79.6 px focal length) a frame-based
 #: tracker without a gyro must find the frame far from its prediction, in a frame smeared by
 #: that motion.
 MOTION_BANDS = {
-    'rotation': ((0.0, 2.0, '<2 deg/frame'), (2.0, 4.0, '2-4'), (4.0, math.inf, '>=4')),
-    'translation': ((0.0, 0.5, '<0.5 cm/frame'), (0.5, 1.0, '0.5-1'), (1.0, math.inf, '>=1')),
+    'deg': ((0.0, 2.0, '<2 deg/frame'), (2.0, 4.0, '2-4'), (4.0, math.inf, '>=4')),
+    'm': ((0.0, 0.5, '<0.5 cm/frame'), (0.5, 1.0, '0.5-1'), (1.0, math.inf, '>=1')),
 }
 
 
 def motion_of(r: Row) -> float:
-    """A row's motion per frame in its kind's band unit: degrees for rotation, cm else."""
-    return r.frame_deg if r.kind == 'rotation' else 100.0 * r.frame_m
+    """A row's motion per frame in its kind's band unit (:data:`MOTION_BANDS`): degrees, or
+    cm for the kinds measured in metres."""
+    return r.frame_deg if UNIT[r.kind] == 'deg' else 100.0 * r.frame_m
 
 
 def junk_share(d: Any, events_per_s: float) -> float:
@@ -629,8 +631,7 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
             for bands, value in ((RATE_BANDS, lambda r: r.events_per_s),
                                  (NOISE_BANDS, noise_of), (JUNK_BANDS, lambda r: r.junk),
                                  (SCENE_BANDS, scene_rate),
-                                 (MOTION_BANDS.get(kind, MOTION_BANDS['translation']),
-                                  motion_of)):
+                                 (MOTION_BANDS[UNIT[kind]], motion_of)):
                 for lo, hi, name in bands:
                     sub = [r for r in rs if (x := value(r)) is not None and lo <= x < hi]
                     if sub:
@@ -713,9 +714,9 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(3, len(kinds), figsize=(4.5 * len(kinds), 11.0), squeeze=False)
-    panels = ((scene_rate, 'log', lambda kind: 'scene events/s (noise and hot pixels removed)'),
-              (motion_of, 'log', lambda kind: 'camera turn per frame, 95th pct (deg)'
-               if kind == 'rotation' else 'camera travel per frame, 95th pct (cm)'))
+    panels = ((scene_rate, 'log', lambda deg: 'scene events/s (noise and hot pixels removed)'),
+              (motion_of, 'log', lambda deg: 'camera turn per frame, 95th pct (deg)'
+               if deg else 'camera travel per frame, 95th pct (cm)'))
     for (box, *scatters), kind in zip(axes.T, kinds, strict=True):
         deg = UNIT[kind] == 'deg'
         scale = 1.0 if deg else 100.0                     # plotted in deg or cm
@@ -742,7 +743,7 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
         box.set_title(kind)
         for scatter, (_, xscale, label) in zip(scatters, panels, strict=True):
             scatter.set_xscale(xscale)
-            scatter.set_xlabel(label(kind))
+            scatter.set_xlabel(label(deg))
             scatter.set_title(f'{kind}: x lost, top edge unevaluated', fontsize=9)
             scatter.legend(fontsize=7)
         for ax in (box, *scatters):

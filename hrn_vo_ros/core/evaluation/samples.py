@@ -123,8 +123,9 @@ def motion_between(gt: Trajectory, t_ns: NDArray[np.int64], q: float = 95.0
     """
     if len(t_ns) < 2:
         return float('nan'), float('nan')
-    g = GroundTruthArrays.from_trajectory(gt, 'swing-twist')
-    R, p = interp_gt(g.t, g.R, g.p, np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
+    R, p = interp_gt(gt.t.astype(np.float64) * 1e-9, quat_to_matrix(gt.quat),
+                     np.asarray(gt.pos, dtype=np.float64),
+                     np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
     turn = np.degrees(np.linalg.norm(so3_log(np.swapaxes(R[:-1], 1, 2) @ R[1:]), axis=1))
     travel = np.linalg.norm(np.diff(p, axis=0), axis=1)
     return float(np.percentile(turn, q)), float(np.percentile(travel, q))
