@@ -47,6 +47,8 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
   ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
   evaluation's doing or the estimator's own delay) and names those it gains and loses.
+  ``--lag-window training`` (not the protocol) searches every lag before the evaluated part
+  only, so that nothing evaluated fits it (``evaluate``'s ``lag_window``).
 
 ``--cache DIR`` keeps each simulated sequence's frames, ground truth and IMU there (pickles
 keyed by kind, seed, length, ``--pset`` and a hash of the config's packetizer settings), so
@@ -111,7 +113,7 @@ from bench_accuracy import CASES  # noqa: E402
 
 from hrn_vo_ros.cli.run import parse_size  # noqa: E402
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
-from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate  # noqa: E402
+from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate, LAG_WINDOWS  # noqa: E402
 from hrn_vo_ros.core.evaluation.samples import motion_between  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
 from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
@@ -193,11 +195,16 @@ CONFIG: dict[str, Path] = {}
 SENSOR: dict[str, int] = {}
 #: ``{'name': NAME}``: run the family's preset NAME (``--preset``) instead of its draws.
 PRESET: dict[str, str] = {}
+#: Where the protocol searches the lag (``--lag-window``: ``run``, the protocol, or
+#: ``training``, only before the evaluated part).
+LAG: dict[str, str] = {'window': 'run'}
 
 
 def _init(overrides: dict[str, Any], p_overrides: dict[str, Any] | None = None,
           s_overrides: dict[str, Any] | None = None, config: Path | None = None,
-          sensor: tuple[int, int] | None = None, preset_name: str | None = None) -> None:
+          sensor: tuple[int, int] | None = None, preset_name: str | None = None,
+          lag_window: str = 'run') -> None:
+    LAG['window'] = lag_window
     if preset_name is not None:
         PRESET['name'] = preset_name
     if sensor is not None:
@@ -391,7 +398,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
         traced: tuple[Any, np.ndarray | None, np.ndarray] | None = None
         try:
             est, states, quality = _run(method, kind, seq, t, imgs)
-            res = evaluate(seq.groundtruth, est, kind)
+            res = evaluate(seq.groundtruth, est, kind, lag_window=LAG['window'])
             s = res.series
             keep = s.t_s >= START_S
             t_s, err = s.t_s[keep], s.err[keep]
@@ -795,6 +802,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--sset', action='append', default=[], metavar='KEY=VALUE',
                    help='override a spiking-emulation setting of the spiking method '
                         '(SpikingConfig, e.g. precision=float; repeatable)')
+    p.add_argument('--lag-window', choices=LAG_WINDOWS, default='run',
+                   help="where the protocol searches the lag: 'run' (the protocol: the whole "
+                        "run) or 'training' (only before the evaluated part)")
     p.add_argument('--config', type=Path, default=None,
                    help='run every kind with this config file instead of config/<kind>.yaml '
                         '(e.g. config/live.yaml on the rotation family)')
@@ -883,7 +893,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     ctx = multiprocessing.get_context('spawn')
     with ctx.Pool(args.jobs, _init, (over, p_over, s_over, config, args.sensor,
-                                     args.preset)) as pool:
+                                     args.preset, args.lag_window)) as pool:
         for out in pool.imap_unordered(job, tasks):
             rows += out
             r0 = out[0]

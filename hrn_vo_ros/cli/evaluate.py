@@ -7,7 +7,9 @@ cross-correlation, 70/30 split, Umeyama calibration, median errors on the test p
 table and, last, one JSON line (``--json``: the JSON line only). ``--plot OUT.png`` draws the
 calibrated trajectory against the ground truth. ``--lag-scan MS`` (a diagnostic, not the
 protocol) re-evaluates with the lag moved by -MS..+MS in 1 ms steps and reports where the
-headline error is lowest (the JSON gets a ``lag_scan`` entry); ``--roll-zero S`` (also a
+headline error is lowest (the JSON gets a ``lag_scan`` entry); ``--lag-window training`` (not
+the protocol) searches the lag only before the evaluated part, which then fits nothing (a late
+jump of the roll moves a whole-run lag, and with it every error); ``--roll-zero S`` (also a
 diagnostic) zeroes the roll on the first S seconds of estimates instead of the protocol's
 0.1 s. ``--convention`` chooses how pan, tilt and roll make a rotation (default
 ``swing-twist``, what an image shift and an image rotation measure; ``euler``:
@@ -38,6 +40,7 @@ from hrn_vo_ros.core.evaluation.protocol import (
     EvalResult,
     evaluate,
     lag_scan,
+    LAG_WINDOWS,
     ROTATION_CONVENTIONS,
 )
 from hrn_vo_ros.core.evaluation.samples import motion_between
@@ -64,6 +67,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                         'optical axis, the roll turns about it) or euler (Ry Rx Rz)')
     p.add_argument('--lag', type=float, default=None,
                    help='use this lag in seconds instead of estimating it')
+    p.add_argument('--lag-window', choices=LAG_WINDOWS, default='run',
+                   help="where the lag is searched: 'run' (default, the protocol: the whole "
+                        "run) or 'training' (only before the evaluated part, so that nothing "
+                        "evaluated fits the lag; a late jump of the roll cannot move it)")
     p.add_argument('--lag-scan', type=int, default=0, metavar='MS',
                    help='also evaluate with the lag moved by -MS..+MS ms (1 ms steps) and '
                         'report where the headline error is lowest (diagnostic)')
@@ -86,7 +93,10 @@ def format_table(res: EvalResult) -> str:
     rows = [('kind', res.kind), ('calibration', str(res.calibration.get('segment', ''))),
             ('rotation convention', str(res.calibration.get('convention', ''))),
             ('roll zeroed on', f'first {res.calibration.get("roll_zero_s", 0.1)} s of estimates'),
-            ('lag', f'{res.lag_s * 1e3:+.1f} ms'), ('roll correlation', f'{res.roll_corr:.3f}'),
+            ('lag', f'{res.lag_s * 1e3:+.1f} ms, searched '
+             + ('before the evaluated part' if res.calibration.get('lag_window') == 'training'
+                else 'over the whole run')),
+            ('roll correlation', f'{res.roll_corr:.3f}'),
             ('estimates used / calib / evaluated',
              f'{res.counts["used"]} / {res.counts["calibration"]} / {res.counts["evaluated"]}'),
             ('split at', f'{res.split_s:.2f} s')]
@@ -169,7 +179,8 @@ def run(args: argparse.Namespace) -> int:
                               'run writes one); drop the option for this file')
         use = np.isin(np.asarray(ef.state), args.calib_states)
     res = evaluate(gt, est, args.kind, calib=args.calib, lag_s=args.lag,
-                   convention=args.convention, roll_zero_s=args.roll_zero, calib_use=use)
+                   convention=args.convention, roll_zero_s=args.roll_zero, calib_use=use,
+                   lag_window=args.lag_window)
     out = res.to_dict()
     turn, travel = motion_between(gt, est.t)
     out['motion'] = {'turn_deg_p95': round(turn, 4), 'travel_m_p95': round(travel, 6)}
@@ -184,7 +195,8 @@ def run(args: argparse.Namespace) -> int:
         offsets_ms = np.arange(-args.lag_scan, args.lag_scan + 1)
         _, curves = lag_scan(gt, est, args.kind, offsets_ms * 1e-3, calib=args.calib,
                              lag_s=res.lag_s, convention=args.convention,
-                             roll_zero_s=args.roll_zero, calib_use=use)
+                             roll_zero_s=args.roll_zero, calib_use=use,
+                             lag_window=args.lag_window)
         metric = TARGETS[args.kind][0]
         values = curves[metric]
         best = int(np.argmin(values))

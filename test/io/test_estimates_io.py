@@ -122,6 +122,12 @@ def test_evaluate_cli_table_json_and_plot(tmp_path: Path,
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--json',
                  '--roll-zero', '1.5']) == 0
     assert json.loads(capsys.readouterr().out.strip())['calibration']['roll_zero_s'] == 1.5
+    assert main(['evaluate', str(ds), str(est), '--kind', 'rotation',
+                 '--lag-window', 'training']) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert any(line.startswith('lag ') and line.endswith('searched before the evaluated part')
+               for line in out)
+    assert json.loads(out[-1])['calibration']['lag_window'] == 'training'
     assert main(['evaluate', str(ds), str(est), '--kind', 'rotation', '--lag-scan', '3']) == 0
     out = capsys.readouterr().out.strip().splitlines()
     assert any(line.startswith('lag scan (median_angle_deg)') for line in out)

@@ -4,9 +4,10 @@ Public API (defined in the modules named, importable from here)::
 
     EstimateSeries(t, h, v, r, z=None)   # raw readouts: t ns, h/v map px, r rad, z log scale
     evaluate(gt, est, kind, *, calib='last10', lag_s=None, max_lag_s=0.5,
-             convention='swing-twist', roll_zero_s=0.1, calib_use=None) -> EvalResult
+             convention='swing-twist', roll_zero_s=0.1, calib_use=None,
+             lag_window='run') -> EvalResult
     lag_scan(gt, est, kind, offsets_s, *, calib='last10', lag_s=None,
-             convention='swing-twist', roll_zero_s=0.1, calib_use=None)
+             convention='swing-twist', roll_zero_s=0.1, calib_use=None, lag_window='run')
         -> (lag_s, {metric: [..]})
     umeyama(src, dst, *, with_scale=True, allow_reflection=False) -> (s, R, t)  # alignment
     estimate_lag(t_est, sig_est, t_gt, sig_gt, *, rate_hz=400, max_lag_s=0.5)  # lag
@@ -27,6 +28,8 @@ Protocol, step by step (all kinds):
    translation it is the sum of squared correlations of (h, v) with the ground-truth x and y (the
    roll is small there). ``lag_s > 0`` means the estimate lags the ground truth; estimate times
    are shifted by ``-lag_s``. A negative roll correlation is reported as a warning (wrong sign).
+   The search covers the whole run; ``lag_window='training'`` (not the protocol) searches only
+   the part before the evaluated one, which nothing evaluated then fits.
 2. **Ground truth at the estimate times** (linear interpolation of positions, geodesic
    interpolation of rotations); estimates outside the ground truth are dropped.
    Everything is expressed relative to the ground-truth pose at the first estimate time t0:
@@ -77,6 +80,8 @@ to change.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -96,6 +101,7 @@ from hrn_vo_ros.core.evaluation.samples import (
     ROTATION_CONVENTIONS,
 )
 from hrn_vo_ros.core.evaluation.series import (
+    ARM_FIRST_ARC_S,
     CALIB_MODES,
     EstimateSeries,
     EVAL_KINDS,
@@ -103,6 +109,7 @@ from hrn_vo_ros.core.evaluation.series import (
     EvalResult,
     EvalSeries,
     F64,
+    LAG_WINDOWS,
     MIN_SAMPLES,
     TRAIN_FRACTION,
 )
@@ -112,6 +119,7 @@ from hrn_vo_ros.errors import ConfigError, DatasetError
 __all__ = [
     'CALIB_MODES',
     'EVAL_KINDS',
+    'LAG_WINDOWS',
     'MIN_SAMPLES',
     'ROTATION_CONVENTIONS',
     'TRAIN_FRACTION',
@@ -134,7 +142,8 @@ __all__ = [
 def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'last10',
              lag_s: float | None = None, max_lag_s: float = 0.5,
              convention: str = 'swing-twist', roll_zero_s: float = 0.1,
-             calib_use: NDArray[np.bool_] | None = None) -> EvalResult:
+             calib_use: NDArray[np.bool_] | None = None,
+             lag_window: str = 'run') -> EvalResult:
     """Evaluate a raw estimate against the ground truth with the paper's protocol.
 
     Args:
@@ -154,6 +163,11 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
             flagging the estimates the estimator reported as ``tracking`` asks whether its
             claims agree with one calibration when its lost output would distort the
             protocol's fit.
+        lag_window: ``'run'`` (the protocol: the lag is searched over the whole run) or
+            ``'training'``: only over the part before the evaluated one (the training part;
+            for the arm, up to the end of the first arc), so that nothing of the evaluated
+            part fits the lag, as nothing of it fits the calibration; one late jump of the
+            roll then cannot move the lag of the whole run.
 
     Returns:
         The metrics, calibration, lag, counts, warnings and aligned series.
@@ -163,26 +177,30 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
         ConfigError: on an unknown kind or calibration mode.
     """
     check_inputs(gt, est, kind, calib, convention)
+    if lag_window not in LAG_WINDOWS:
+        raise ConfigError(f'lag_window = {lag_window!r}: use one of {", ".join(LAG_WINDOWS)}')
     if not 0.0 < roll_zero_s < 1e3:
         raise ConfigError(f'roll_zero_s = {roll_zero_s}: give the roll zeroing window in seconds '
                           '(> 0; the protocol uses 0.1)')
     warnings: list[str] = []
     g = GroundTruthArrays.from_trajectory(gt, convention)
     t_raw = est.t.astype(np.float64) * 1e-9
+    split = float(g.t[int(TRAIN_FRACTION * len(g.t))])
     # 1. lag, and the estimates inside the ground truth once it is corrected
-    lag = _lag(kind, t_raw, est, g, lag_s, max_lag_s, warnings)
+    lag = _lag(kind, t_raw, est, g, lag_s, max_lag_s, warnings,
+               None if lag_window == 'run' else _training_end(kind, float(g.t[0]), split))
     t, inside = _inside_ground_truth(t_raw - lag, g, lag, warnings)
     # 2. ground truth at the estimate times, relative to the pose at t0; roll zeroed
     samples = align_samples(g, t, est, inside, convention=convention, roll_zero_s=roll_zero_s)
     roll_corr = roll_correlation(t, samples.r, g)
     _roll_warnings(kind, roll_corr, warnings)
     # 3. split by ground-truth line order, calibration segment and evaluated part
-    split = float(g.t[int(TRAIN_FRACTION * len(g.t))])
     calib_mask, test, cal_name = _segments(kind, calib, t, float(g.t[0]), split, warnings)
     if calib_use is not None:
         calib_mask, cal_name = _restrict(calib_mask, cal_name, calib_use, inside)
     cal_info: dict[str, float | bool | str] = {'roll_offset_rad': samples.roll_offset,
                                                'roll_zero_s': roll_zero_s,
+                                               'lag_window': lag_window,
                                                'convention': convention, 'segment': cal_name}
     # 4./5. calibration and errors, per kind
     res = KIND_METRICS[kind](samples, calib_mask, test)
@@ -199,8 +217,8 @@ def evaluate(gt: Trajectory, est: EstimateSeries, kind: str, *, calib: str = 'la
 def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
              calib: str = 'last10', lag_s: float | None = None,
              max_lag_s: float = 0.5, convention: str = 'swing-twist',
-             roll_zero_s: float = 0.1, calib_use: NDArray[np.bool_] | None = None
-             ) -> tuple[float, dict[str, list[float]]]:
+             roll_zero_s: float = 0.1, calib_use: NDArray[np.bool_] | None = None,
+             lag_window: str = 'run') -> tuple[float, dict[str, list[float]]]:
     """Every metric with the time alignment moved by each offset (a diagnostic, not the
     protocol): how steeply the errors depend on the lag, and which lag each metric prefers.
 
@@ -209,8 +227,8 @@ def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
     away from offset 0.
 
     Args:
-        gt, est, kind, calib, max_lag_s, convention, roll_zero_s, calib_use: as for
-            :func:`evaluate`.
+        gt, est, kind, calib, max_lag_s, convention, roll_zero_s, calib_use, lag_window: as
+            for :func:`evaluate`.
         offsets_s: Offsets added to the lag, seconds (+ = the estimate lags more).
         lag_s: The lag the offsets are added to (None: estimated as :func:`evaluate` does).
 
@@ -224,7 +242,8 @@ def lag_scan(gt: Trajectory, est: EstimateSeries, kind: str, offsets_s: F64, *,
     if offsets.size == 0 or not np.all(np.isfinite(offsets)):
         raise ConfigError('lag_scan needs at least one finite offset (seconds)')
     base = (evaluate(gt, est, kind, calib=calib, max_lag_s=max_lag_s, convention=convention,
-                     roll_zero_s=roll_zero_s, calib_use=calib_use).lag_s
+                     roll_zero_s=roll_zero_s, calib_use=calib_use,
+                     lag_window=lag_window).lag_s
             if lag_s is None else float(lag_s))
     curves: dict[str, list[float]] = {}
     for d in offsets:
@@ -320,10 +339,23 @@ def _check_ground_truth(gt: Trajectory) -> None:
                            'fix or remove that line of the ground truth')
 
 
+def _training_end(kind: str, t_start: float, split: float) -> float:
+    """Where the part before the evaluated one ends (ground-truth seconds): the split, or
+    for the arm the end of its first arc (:func:`_segments`)."""
+    return t_start + ARM_FIRST_ARC_S if kind == 'arm' else split
+
+
 def _lag(kind: str, t_raw: F64, est: EstimateSeries, g: GroundTruthArrays,
-         lag_s: float | None, max_lag_s: float, warnings: list[str]) -> float:
+         lag_s: float | None, max_lag_s: float, warnings: list[str],
+         end: float | None = None) -> float:
     """The given lag, or the protocol's estimate (searched in both cases: the search also
-    checks that the estimate and the ground truth overlap long enough)."""
+    checks that the estimate and the ground truth overlap long enough); ``end``: search only
+    the estimates and ground truth before this time (s)."""
+    if end is not None:
+        e, k = t_raw <= end, g.t <= end
+        est = EstimateSeries(est.t[e], est.h[e], est.v[e], est.r[e],
+                             None if est.z is None else est.z[e])
+        t_raw, g = t_raw[e], replace(g, t=g.t[k], R=g.R[k], p=g.p[k], roll=g.roll[k])
     lag_found = protocol_lag(kind, t_raw, est, g.t, g.R, g.p, g.roll, max_lag_s=max_lag_s)
     lag = lag_found if lag_s is None else float(lag_s)
     if lag_s is None and abs(abs(lag) - max_lag_s) < 2.5e-3:
@@ -385,8 +417,8 @@ def _segments(kind: str, calib: str, t: F64, t_start: float, split: float,
     train = t < split
     test = ~train
     if kind == 'arm':
-        calib_mask = (t >= t_start + 0.5) & (t <= t_start + 5.0)
-        test = t > t_start + 5.0
+        calib_mask = (t >= t_start + 0.5) & (t <= t_start + ARM_FIRST_ARC_S)
+        test = t > t_start + ARM_FIRST_ARC_S
         if calib != 'last10':
             warnings.append('--calib is ignored for the arm: the first arc (0.5–5 s) is used')
         cal_name = 'first arc 0.5–5 s'

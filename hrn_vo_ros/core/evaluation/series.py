@@ -22,6 +22,10 @@ MIN_SAMPLES = 20
 """Fewest estimates accepted in the input, the calibration segment and the evaluated part."""
 TRAIN_FRACTION = 0.7
 """Share of the ground-truth lines in the training part (the rest is the test part)."""
+ARM_FIRST_ARC_S = 5.0
+"""The arm's calibration segment ends this long after the first ground-truth pose."""
+LAG_WINDOWS = ('run', 'training')
+"""Where the lag is searched: the whole run (the protocol) or only before the evaluated part."""
 DEG = 180.0 / np.pi
 
 

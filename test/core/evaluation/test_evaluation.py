@@ -164,6 +164,39 @@ def test_lag_is_found_and_removed() -> None:
     assert res_fixed.metrics['median_angle_deg'] > 1.0
 
 
+def test_lag_from_the_training_part_ignores_a_late_roll_jump() -> None:
+    """A roll that jumps by 170 degrees late in the evaluated part (a wrong re-localisation)
+    weighs in the whole-run search (the protocol): its lag is 6 ms off the true 0.12 s, and
+    the evaluated samples before the jump read about 1 degree off. Searched before the
+    evaluated part only, the lag is exact and those samples are too."""
+    gt, est = _rotation_case(lag=0.12)
+    r = est.r + np.radians(170.0) * (est.t * 1e-9 > 0.9 * SECONDS)
+    jumped = EstimateSeries(est.t, est.h, est.v, r)
+    run = evaluate(gt, jumped, 'rotation')
+    assert abs(run.lag_s - 0.12) > 4e-3
+    assert run.metrics['median_angle_deg'] > 0.5
+    trained = evaluate(gt, jumped, 'rotation', lag_window='training')
+    assert trained.lag_s == pytest.approx(0.12, abs=1e-3)
+    assert trained.metrics['median_angle_deg'] < 0.05
+    # without a jump both windows find the same lag; an unknown window is refused
+    assert evaluate(gt, est, 'rotation', lag_window='training').lag_s == pytest.approx(
+        evaluate(gt, est, 'rotation').lag_s, abs=1e-3)
+    with pytest.raises(ConfigError, match="lag_window = 'test'"):
+        evaluate(gt, est, 'rotation', lag_window='test')
+
+
+def test_arm_lag_from_the_first_arc() -> None:
+    """For the arm the part before the evaluated one is the first arc (up to 5 s): a roll
+    jump at 6 s (inside the 70 % training part, after the arc) moves the whole-run lag by
+    80 ms and not the first arc's."""
+    gt, est = _arm_case()
+    r = est.r + np.radians(60.0) * (est.t * 1e-9 > 6.0)
+    jumped = EstimateSeries(est.t, est.h, est.v, r)
+    assert abs(evaluate(gt, jumped, 'arm').lag_s) > 0.05
+    assert evaluate(gt, jumped, 'arm', lag_window='training').lag_s == pytest.approx(
+        0.0, abs=1e-3)
+
+
 def test_wrong_roll_sign_is_detected() -> None:
     gt, est = _rotation_case(roll_sign=-1.0)
     res = evaluate(gt, est, 'rotation')
