@@ -111,6 +111,7 @@ sys.path.insert(0, str(ROOT / 'bench'))
 
 from bench_accuracy import CASES  # noqa: E402
 
+from hrn_vo_ros.cli.evaluate import FAST_TURN_DEG  # noqa: E402
 from hrn_vo_ros.cli.run import parse_size  # noqa: E402
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate, LAG_WINDOWS  # noqa: E402
@@ -561,11 +562,11 @@ def scene_rate(r: Row) -> float:
 #: Bands of the camera's motion per frame (``motion_between``, the 95th percentile over a
 #: draw), by the kind's :data:`UNIT`: the turn in degrees (rotation), the travel in cm (the
 #: kinds measured in metres: translation and the arm).
-#: Above about 4° per frame (5.5 px at the configs' 79.6 px focal length) a frame-based
-#: tracker without a gyro must find the frame far from its prediction, in a frame smeared by
-#: that motion.
+#: The top band starts where ``hrn-vo evaluate`` notes a fast rotation (``FAST_TURN_DEG``,
+#: 4° per frame: the network without a gyro loses most tracks there).
 MOTION_BANDS = {
-    'deg': ((0.0, 2.0, '<2 deg/frame'), (2.0, 4.0, '2-4'), (4.0, math.inf, '>=4')),
+    'deg': ((0.0, 2.0, '<2 deg/frame'), (2.0, FAST_TURN_DEG, f'2-{FAST_TURN_DEG:g}'),
+            (FAST_TURN_DEG, math.inf, f'>={FAST_TURN_DEG:g}')),
     'm': ((0.0, 0.5, '<0.5 cm/frame'), (0.5, 1.0, '0.5-1'), (1.0, math.inf, '>=1')),
 }
 
