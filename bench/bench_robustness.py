@@ -883,7 +883,8 @@ def main(argv: list[str] | None = None) -> int:
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
     what = (f'preset {args.preset} seeds {seeds[0]}..{seeds[-1]}' if args.preset else
-            f'{args.n} {"tuning" if args.tuning else "fresh"} draws per kind')
+            f'{len(seeds)} given draws per kind, seeds {seeds[0]}..{seeds[-1]}' if args.seeds
+            else f'{args.n} {"tuning" if args.tuning else "fresh"} draws per kind')
     print(f'{len(tasks)} sequences ({what}, {args.seconds:g} s), methods '
           f'{", ".join(args.methods)}, {args.jobs} jobs'
           + ('' if args.config is None else f', config {args.config}')
