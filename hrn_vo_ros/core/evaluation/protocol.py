@@ -419,9 +419,10 @@ def _segments(kind: str, calib: str, t: F64, t_start: float, split: float,
     if kind == 'arm':
         calib_mask = (t >= t_start + 0.5) & (t <= t_start + ARM_FIRST_ARC_S)
         test = t > t_start + ARM_FIRST_ARC_S
+        arc = f'0.5–{ARM_FIRST_ARC_S:g} s'
         if calib != 'last10':
-            warnings.append('--calib is ignored for the arm: the first arc (0.5–5 s) is used')
-        cal_name = 'first arc 0.5–5 s'
+            warnings.append(f'--calib is ignored for the arm: the first arc ({arc}) is used')
+        cal_name = f'first arc {arc}'
     elif kind == 'translation':
         calib_mask = train.copy()
         if calib != 'last10':
