@@ -284,7 +284,8 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
                  ('8-bit, radix 2', SpikingConfig(max_radix=2)),
                  ('8-bit, delay synapses', SpikingConfig(synapse='delay')),
                  ('8-bit, ReLU threshold p', SpikingConfig(nonlinearity='relu')),
-                 ('8-bit, 4-bit payloads', SpikingConfig(payload_bits=4)),
+                 ('8-bit, 4-bit payloads', SpikingConfig(payload_bits=4,
+                                                         transform_payload_bits=4)),
                  ('8-bit, binary spikes', SpikingConfig(payload_bits=1))]
     for label, sc in variants:
         es, dts, acc = run(cfg, BackendConfig('spiking', sc), t, imgs, seed)

@@ -69,6 +69,12 @@ class SpikingConfig:
         12, "payload bits of a cleanup input's DC neuron (the element that adds the same to "
         'every similarity); the rest of the population keeps payload_bits in a finer unit '
         '(<= payload_bits: one unit for all, sized by the DC term)', lo=1, hi=24, read_only=True)
+    transform_payload_bits: int = param(
+        8, "payload bits of the sparse transforms' neurons (the frame's log-polar spectrum, "
+        "the stages of Λ' and Λ, and the map population that feeds them); a 2-D spectrum's DC "
+        'sets the unit, so on 8 bits a fifth to a third of the rest round to silence on dense '
+        'frames (12 measured: docs/spiking.md); binary when payload_bits is 1', lo=1, hi=24,
+        read_only=True)
     state_bits: int = param(
         24, 'bits of the signed integer neuron state (Loihi compartment voltage: 24)', lo=12,
         hi=32, read_only=True)
@@ -110,7 +116,14 @@ class SpikingConfig:
     @property
     def widest_payload(self) -> int:
         """The largest graded-spike payload any neuron sends, in bits."""
-        return self.dc_payload_bits if self.dc_wide else self.payload_bits
+        cleanup = self.dc_payload_bits if self.dc_wide else self.payload_bits
+        return max(cleanup, self.transform_bits if self.transform == 'sparse' else 0)
+
+    @property
+    def transform_bits(self) -> int:
+        """Payload bits of the sparse transforms' neurons: ``transform_payload_bits``, or
+        binary spikes everywhere when ``payload_bits`` is 1 (the Loihi 1 code)."""
+        return 1 if self.payload_bits == 1 else self.transform_payload_bits
 
     @property
     def quantised(self) -> bool:

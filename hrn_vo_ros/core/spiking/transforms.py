@@ -10,18 +10,25 @@ become chains of phasor-neuron layers: every butterfly stage of every 1-D DFT
 (:mod:`.butterfly`, fan-in = its radix) and the bilinear resampling ``T`` (``T'``) with at most 4
 real taps per output neuron are one layer each. Every layer's neurons integrate their inputs over
 one cycle and fire one phase-coded graded spike (:class:`PhasorCode`, the code of
-:func:`~hrn_vo_ros.core.spiking.neurons.encode`: phase on the ``2 pi / T`` grid, ``payload_bits``
-payload with a per-population power-of-two unit); with ``precision='loihi'`` the weights are
-``weight_bits`` mantissas with one exponent per layer (:func:`~.synapses.quantise_weights`) and
-a spike sent at step ``t`` arrives turned by the fixed-point rotation ``rho^(T - t)`` of the
-receiving RF neuron (``rho = (c - i s) / 2^D``, the constants of
-:func:`~hrn_vo_ros.core.spiking.neurons.rotation_constants`).
+:func:`~hrn_vo_ros.core.spiking.neurons.encode`: phase on the ``2 pi / T`` grid,
+``transform_payload_bits`` payload with a per-population power-of-two unit: 8 bits by default;
+a 2-D spectrum's DC and lowest frequencies set the unit, and on dense frames a fifth to a third
+of the map's and of ``Λ'``'s last stage's neurons round to silence, which 12 bits avoid); with
+``precision='loihi'`` the weights are ``weight_bits`` mantissas with one exponent per layer
+(:func:`~.synapses.quantise_weights`) and a spike sent at step ``t`` arrives turned by the
+fixed-point rotation ``rho^(T - t)`` of the receiving RF neuron (``rho = (c - i s) / 2^D``,
+the constants of :func:`~hrn_vo_ros.core.spiking.neurons.rotation_constants`).
 
 Emulation ([design], stated for honesty): a layer's end-of-cycle state is computed in closed
 form, ``sum_j w_j g_j rho^(T - t_j)``, in complex64; the per-step rounding of the 24-bit integer
-state (at most ``T`` half-LSBs of a state that the worst-case shift keeps >= 2^4 LSBs per unit
-kick with fan-in <= 4, i.e. below the next layer's payload rounding) is not emulated here,
-unlike in the cleanup layers (:func:`~hrn_vo_ros.core.spiking.neurons.rf_cycle_int`).
+state is not emulated here, unlike in the cleanup layers
+(:func:`~hrn_vo_ros.core.spiking.neurons.rf_cycle_int`). It is at most ``T`` half-LSBs of a
+state whose shift fits the worst case (fan-in <= 4, full weights and payloads) in 24 bits: with
+8-bit payloads >= 2^4 LSBs per unit kick; with 12-bit payloads (and 8-bit weights) the worst
+case 4 x 127 x 4095 is just below 2^21, the shift keeps >= 2 LSBs per unit kick, and a
+population whose largest output reaches 1/2^k of its worst case keeps >= 2^(10-k) LSBs per unit
+of its own payload: the rounding (at most 16 LSBs, about 1.6 rms: ``sqrt(T)`` random
+half-LSBs) stays below that payload's own rounding (half a unit, 0.29 rms) for k <= 4.
 """
 
 from __future__ import annotations
@@ -52,8 +59,9 @@ class PhasorCode:
     """What a population of phasor neurons passes on: its values as one graded spike each.
 
     ``fire(z)`` returns ``g 2^e u[t]`` with ``t = round(arg z T / 2 pi) mod T``,
-    ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``e`` from the population's largest
-    magnitude; ``B = 1``: unit payloads, the unit nearest the mean magnitude) and ``u[t]`` the
+    ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``B = transform_payload_bits``, ``e`` from
+    the population's largest magnitude; ``B = 1``: unit payloads, the unit nearest the mean
+    magnitude) and ``u[t]`` the
     phase a spike at step ``t`` has at the end of the receiving neuron's cycle
     (``e^{i 2 pi t / T}``; ``precision='loihi'``: ``rho^(T - t)``). ``last_count`` is the number
     of neurons that fired.
@@ -61,6 +69,7 @@ class PhasorCode:
 
     def __init__(self, cfg: SpikingConfig) -> None:
         self.cfg = cfg
+        self.bits = cfg.transform_bits
         steps = cfg.steps_per_cycle
         t = np.arange(steps)
         if cfg.quantised:
@@ -84,7 +93,7 @@ class PhasorCode:
             self.last_count = 0
             return np.zeros_like(z)
         code = phase_codes(z, cfg.steps_per_cycle)
-        if cfg.payload_bits == 1:
+        if self.bits == 1:
             ph = self._by_code.take(code)
             live = mag > 0.0
             if cfg.fire_threshold > 0.0:
@@ -94,7 +103,7 @@ class PhasorCode:
             unit = 2.0 ** round(math.log2(mean)) if mean > 0.0 else 0.0
             ph *= np.where(live, np.float32(unit), np.float32(0.0))
             return ph
-        e = payload_exponent(top, cfg.payload_bits)
+        e = payload_exponent(top, self.bits)
         ph = (self._by_code * np.float32(2.0 ** e)).take(code)   # unit 2^e: exact
         silent = (mag < cfg.fire_threshold * float(mag.mean()) if cfg.fire_threshold > 0.0
                   else None)
