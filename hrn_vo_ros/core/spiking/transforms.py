@@ -59,12 +59,11 @@ class PhasorCode:
     """What a population of phasor neurons passes on: its values as one graded spike each.
 
     ``fire(z)`` returns ``g 2^e u[t]`` with ``t = round(arg z T / 2 pi) mod T``,
-    ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``B = transform_payload_bits``, ``e`` from
-    the population's largest magnitude; ``B = 1``: unit payloads, the unit nearest the mean
-    magnitude) and ``u[t]`` the
-    phase a spike at step ``t`` has at the end of the receiving neuron's cycle
-    (``e^{i 2 pi t / T}``; ``precision='loihi'``: ``rho^(T - t)``). ``last_count`` is the number
-    of neurons that fired.
+    ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``B = cfg.transform_bits``, ``e`` from the
+    population's largest magnitude; ``B = 1``: unit payloads, the unit nearest the mean
+    magnitude) and ``u[t]`` the phase a spike at step ``t`` has at the end of the receiving
+    neuron's cycle (``e^{i 2 pi t / T}``; ``precision='loihi'``: ``rho^(T - t)``).
+    ``last_count`` is the number of neurons that fired.
     """
 
     def __init__(self, cfg: SpikingConfig) -> None:
