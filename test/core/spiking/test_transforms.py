@@ -91,12 +91,10 @@ def test_phasor_code_is_the_neuron_code(steps: int) -> None:
     z = crandn(rng, 500)
     cfg = SpikingConfig(precision='float', steps_per_cycle=steps)
     got = PhasorCode(cfg).fire(z.astype(np.complex64))
-    # the transforms' populations send on transform_payload_bits, the neuron code's
-    # payload_bits elsewhere: the same code at that width (both 8 by default)
-    # (complex64 input: a payload may round one unit the other way)
-    ref = encode(z, replace(cfg, payload_bits=cfg.transform_payload_bits))
-    np.testing.assert_allclose(got, ref.decode(), rtol=1e-5, atol=1.01 * 2.0**ref.exp)
-    assert np.mean(np.abs(got - ref.decode()) > 1e-5) < 0.01
+    # the transforms' populations send on cfg.transform_bits, the neuron code's payload_bits
+    # elsewhere: the same code at that width (both 8 by default)
+    ref = encode(z, replace(cfg, payload_bits=cfg.transform_bits))
+    np.testing.assert_allclose(got, ref.decode(), rtol=1e-5, atol=1e-5)
 
 
 def test_transform_populations_send_on_their_own_payload_width() -> None:
@@ -330,7 +328,7 @@ def test_batched_cleanups_equal_one_factor_at_a_time() -> None:
 def test_phasor_code_threshold_and_binary_spikes_match_the_neuron_code() -> None:
     rng = np.random.default_rng(9)
     z = crandn(rng, 400)
-    for cfg in (SpikingConfig(precision='float', fire_threshold=0.5, transform_payload_bits=8),
+    for cfg in (SpikingConfig(precision='float', fire_threshold=0.5),
                 SpikingConfig(precision='float', payload_bits=1, fire_threshold=0.5)):
         got = PhasorCode(cfg).fire(z.astype(np.complex64))
         np.testing.assert_allclose(got, encode(z, cfg).decode(), rtol=1e-5, atol=1e-5)
