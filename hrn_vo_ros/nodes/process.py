@@ -105,12 +105,9 @@ def default_stop_signals() -> None:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def _shut_down(node: Node | None, limit: _StopLimit | None = None) -> None:
-    """Arm the stop ``limit``, destroy the node and shut rclpy down, ignoring further stop
-    signals meanwhile."""
-    steps: list[Callable[[], object]] = [] if limit is None else [limit.arm]
-    steps += [] if node is None else [node.destroy_node]
-    steps.append(rclpy.try_shutdown)
+def _shielded(steps: list[Callable[[], object]]) -> None:
+    """Run clean-up ``steps`` in order with the stop signals ignored: a step that a signal
+    interrupted before they were ignored runs again; an error is logged and the rest go on."""
     while steps:
         try:
             _ignore_stop_signals()
@@ -120,6 +117,15 @@ def _shut_down(node: Node | None, limit: _StopLimit | None = None) -> None:
         except Exception as err:     # the clean-up goes on; logged
             rclpy.logging.get_logger('hrn_vo_ros').warning(f'during shutdown: {err!r}')
         steps.pop(0)
+
+
+def _shut_down(node: Node | None, limit: _StopLimit | None = None) -> None:
+    """Arm the stop ``limit``, destroy the node and shut rclpy down, ignoring further stop
+    signals meanwhile."""
+    steps: list[Callable[[], object]] = [] if limit is None else [limit.arm]
+    steps += [] if node is None else [node.destroy_node]
+    steps.append(rclpy.try_shutdown)
+    _shielded(steps)
 
 
 def run(make_node: Callable[[], Node], args: list[str] | None = None,
@@ -160,7 +166,13 @@ def _spin(node: Node) -> int:
     """:func:`run`'s job: spin until shut down (not at all when a signal came first)."""
     executor = _executor()
     if executor is not None:
-        rclpy.spin(node, executor=executor)
+        try:
+            rclpy.spin(node, executor=executor)
+        finally:
+            # Its guard conditions (one registered with rclpy's signal handler) go now, while
+            # the node and context live, not whenever the garbage collector reaches the
+            # executor's reference cycle (possibly at the interpreter's exit).
+            _shielded([executor.shutdown])
     return 0
 
 
@@ -174,6 +186,7 @@ def _entry(make_node: Callable[[], N], task: Callable[[N], int], args: list[str]
     code = 0
     initialised = False
     limit = _StopLimit(stop_limit_s)
+    faulthandler.enable()    # a crash in C (rclpy, the DDS) prints every thread's stack first
     default_stop_signals()   # drop the import-time exit (hrn_vo_ros.nodes) before rclpy's own
     try:
         rclpy.init(args=args)

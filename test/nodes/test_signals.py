@@ -263,3 +263,50 @@ def test_a_job_whose_arguments_rclpy_refuses_fails_with_that_error_not_130() -> 
     proc = start([sys.executable, '-c', code])
     _, err, _ = ended(proc, time.monotonic())
     assert proc.returncode == 1 and "Couldn't parse trailing --remap flag" in err, err[-2000:]
+
+
+# A node that records the executor run() spins it with, and says in destroy_node whether that
+# executor was already shut down; or one whose callback crashes in C (a null read).
+EXECUTOR_NODE = """
+import ctypes, sys
+import hrn_vo_ros.nodes.process as process
+from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+
+made = []
+make = process._executor
+process._executor = lambda: made.append(make()) or made[-1]
+
+class Node(PacketizerNode):
+    def __init__(self):
+        super().__init__()
+        if 'crash' in sys.argv:
+            self.create_timer(0.2, self.crash_in_c)
+        print('spinning', flush=True)
+
+    def crash_in_c(self):
+        ctypes.string_at(0)
+
+    def destroy_node(self):
+        gone = made[0]._guard is None and made[0]._sigint_gc is None
+        print('executor ' + ('shut down' if gone else 'alive'), flush=True)
+        return super().destroy_node()
+
+sys.exit(process.run(Node))
+"""
+
+
+def test_the_executor_is_shut_down_before_the_node_is_destroyed() -> None:
+    proc = start([sys.executable, '-c', EXECUTOR_NODE])
+    wait_line(proc, 'stdout', 'spinning')
+    time.sleep(0.3)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    assert 'executor shut down' in finish(proc, sent)
+
+
+def test_a_crash_in_c_prints_where_it_happened() -> None:
+    proc = start([sys.executable, '-c', EXECUTOR_NODE, 'crash'])
+    out, err, _ = ended(proc, time.monotonic())
+    assert proc.returncode == -signal.SIGSEGV, (proc.returncode, err[-2000:])
+    assert 'Fatal Python error: Segmentation fault' in err, err[-2000:]
+    assert 'in crash_in_c' in err, err[-2000:]
