@@ -72,6 +72,12 @@ shapes_rotation`` runs the family's fixed preset instead of randomized draws (60
 Event Camera Dataset's sequence: the real DAVIS240C calibration, a shapes poster 1 m away, the
 speed rising 9x to 650 deg/s at the end; seeds vary only texture, waves and noise).
 
+``--rows A.csv B.csv ...`` prints earlier runs' tables again; with ``--paired`` it compares
+them draw by draw instead (each file a run on the same draws, e.g. ``--pset
+events_per_frame=1950`` and ``2050`` beside the default): tracked per run and method, each
+method's mean and range over the runs (its flip noise), the draws not tracked alike, and per
+pair of columns the draws only one tracks with an exact sign test (:func:`paired`).
+
 Examples::
 
     scripts/run.sh python bench/bench_robustness.py --smoke
@@ -706,11 +712,62 @@ _PARSE: dict[str, Any] = {'int': int, 'float': float, 'str': str, 'bool': lambda
                           'bool | None': lambda v: None if v == '' else v == 'True'}
 
 
+def _label(path: Path, paths: list[Path]) -> str:
+    """A run's name in ``--paired``: its file's stem, or its path when stems repeat."""
+    return path.stem if [q.stem for q in paths].count(path.stem) == 1 else str(path)
+
+
 def read_rows(path: Path) -> list[Row]:
     """Rows of a ``--csv`` file (to print the table and breakdown again)."""
     parse = {f.name: _PARSE[str(f.type)] for f in fields(Row)}
     with open(path, newline='') as f:
         return [Row(**{k: parse[k](v) for k, v in d.items()}) for d in csv.DictReader(f)]
+
+
+def sign_test_p(a_only: int, b_only: int) -> float:
+    """Two-sided exact sign test (McNemar's exact test) of a paired split: the chance of a
+    split at least this uneven if the draws only one of two columns tracks fell either way
+    with even odds."""
+    n, k = a_only + b_only, min(a_only, b_only)
+    return 1.0 if n == 0 else min(1.0, 2.0 * sum(math.comb(n, i) for i in range(k + 1)) / 2**n)
+
+
+def paired(runs: list[tuple[str, list[Row]]], kinds: list[str]) -> list[str]:
+    """The same draws under several runs (one ``--csv`` each, e.g. frames of slightly
+    different sizes, or another setting): per kind, each column's (run and method's) tracked
+    count on the draws that every column has, each method's mean and range over the runs, the
+    draws not tracked alike (T/L per column), and per pair of columns the draws only one of
+    them tracks with :func:`sign_test_p`. A difference between two columns is worth as much
+    as that split; how far one method's count moves between runs is its flip noise."""
+    lines: list[str] = []
+    for kind in kinds:
+        verdict = {(label, m): {r.seed: not is_lost(r) for r in rows
+                                if r.kind == kind and r.method == m}
+                   for label, rows in runs for m in METHODS}
+        cols = [c for c, v in verdict.items() if v]
+        if len(cols) < 2:
+            continue
+        seeds = sorted(set.intersection(*(set(verdict[c]) for c in cols)))
+        names = [f'{label}/{m}' for label, m in cols]
+        lines.append(f'{kind}: {len(seeds)} draws in all {len(cols)} columns')
+        for name, col in zip(names, cols, strict=True):
+            lines.append(f'  {name:<28} tracked {sum(verdict[col][s] for s in seeds)}')
+        for m in METHODS:
+            counts = [sum(verdict[c][s] for s in seeds) for c in cols if c[1] == m]
+            if len(counts) > 1:
+                lines.append(f'  {m}: mean {sum(counts) / len(counts):.1f} over {len(counts)} '
+                             f'runs (range {min(counts)}-{max(counts)})')
+        odd = [s for s in seeds if len({verdict[c][s] for c in cols}) > 1]
+        lines.append(f'  not tracked alike: {len(odd)} draws ({" ".join(names)})')
+        lines += [f'    {s}  ' + ' '.join('T' if verdict[c][s] else 'L' for c in cols)
+                  for s in odd]
+        for i, a in enumerate(cols):
+            for j, b in enumerate(cols[i + 1:], i + 1):
+                a_only = sum(verdict[a][s] and not verdict[b][s] for s in seeds)
+                b_only = sum(verdict[b][s] and not verdict[a][s] for s in seeds)
+                lines.append(f'  {names[i]} vs {names[j]}: {a_only} / {b_only} tracked by one '
+                             f'only, sign test p {sign_test_p(a_only, b_only):.3g}')
+    return lines
 
 
 def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:
@@ -824,15 +881,27 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--rows', type=Path, nargs='+', default=None,
                    help='print the table and breakdown (and --plot) of --csv files of earlier '
                         'runs, e.g. one per method on the same draws (runs nothing)')
+    p.add_argument('--paired', action='store_true',
+                   help='with --rows: compare the files draw by draw (each a run on the same '
+                        'draws): tracked per run and method, the draws not tracked alike, and '
+                        'per pair the draws only one tracks with a sign test')
     args = p.parse_args(argv)
+    if args.paired and not args.rows:
+        print('--paired compares --rows files: give them', file=sys.stderr)
+        return 2
     if args.rows:                       # earlier runs' CSVs: print (and plot) them together
         missing = [str(path) for path in args.rows if not path.is_file()]
         if missing:
             print(f'--rows: no such file: {", ".join(missing)} (give --csv files of earlier '
                   'runs)', file=sys.stderr)
             return 2
-        rows: list[Row] = [r for path in args.rows for r in read_rows(path)]
+        runs = [(_label(path, args.rows), read_rows(path)) for path in args.rows]
+        rows: list[Row] = [r for _, rs in runs for r in rs]
         kinds = [k for k in KINDS if any(r.kind == k for r in rows)]
+        if args.paired:
+            for line in paired(runs, kinds):
+                print(line)
+            return 0
         methods = [m for m in METHODS if any(r.method == m for r in rows)]
         for line in table(rows, kinds, methods) + [''] + breakdown(rows, kinds, methods):
             print(line)

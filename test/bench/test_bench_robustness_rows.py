@@ -129,3 +129,49 @@ def test_the_motion_per_frame_bands() -> None:
     assert lines[1].endswith('<2 deg/frame 1/1, 2-4 1/1, >=4 1/1, '
                              'unevaluated few 0 still 0 other 0')
     assert '<0.5 cm/frame 1/1, >=1 1/1, unevaluated' in lines[2]
+
+
+def test_the_sign_test_of_a_paired_split_is_the_exact_binomial_tail() -> None:
+    # 8 / 1: 2 (C(9,0) + C(9,1)) / 2^9 = 20 / 512; 5 / 0: 2 / 32; 4 / 4 and 0 / 0: 1
+    assert robustness.sign_test_p(8, 1) == robustness.sign_test_p(1, 8) == 20 / 512
+    assert robustness.sign_test_p(5, 0) == 0.0625
+    assert robustness.sign_test_p(4, 4) == robustness.sign_test_p(0, 0) == 1.0
+    assert robustness.sign_test_p(3, 1) == 2 * 5 / 16
+
+
+def _verdicts(method: str, errs: dict[int, float]) -> list[object]:
+    return [robustness.Row('rotation', s, method, 10.0, 1e5, 100.0, e, False, 0.0, 0, 0, 0, '',
+                           1.0, '', 'draw') for s, e in errs.items()]
+
+
+def test_paired_runs_are_compared_draw_by_draw_on_the_draws_all_have(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Draw 5 is only in run a (left out); a 20° median is a loss, 0.5° a track."""
+    t, lost = 0.5, 20.0
+    a = (_verdicts('hrn', {1: t, 2: t, 3: lost, 4: t, 5: t})
+         + _verdicts('spiking', {1: t, 2: lost, 3: lost, 4: t, 5: lost}))
+    b = _verdicts('hrn', {1: t, 2: lost, 3: lost, 4: lost})
+    lines = robustness.paired([('a', a), ('b', b)], ['rotation'])
+    assert lines == [
+        'rotation: 4 draws in all 3 columns',
+        '  a/hrn                        tracked 3',
+        '  a/spiking                    tracked 2',
+        '  b/hrn                        tracked 1',
+        '  hrn: mean 2.0 over 2 runs (range 1-3)',
+        '  not tracked alike: 2 draws (a/hrn a/spiking b/hrn)',
+        '    2  T L L',
+        '    4  T T L',
+        '  a/hrn vs a/spiking: 1 / 0 tracked by one only, sign test p 1',
+        '  a/hrn vs b/hrn: 2 / 0 tracked by one only, sign test p 0.5',
+        '  a/spiking vs b/hrn: 1 / 0 tracked by one only, sign test p 1']
+    paths = []
+    for name, rows in (('a', a), ('b', b)):
+        paths.append(tmp_path / f'{name}.csv')
+        with open(paths[-1], 'w', newline='') as f:
+            w = robustness.csv.DictWriter(f, fieldnames=list(robustness.asdict(rows[0])))
+            w.writeheader()
+            w.writerows(robustness.asdict(r) for r in rows)
+    assert robustness.main(['--rows', *map(str, paths), '--paired']) == 0
+    assert capsys.readouterr().out.splitlines() == lines
+    assert robustness.main(['--paired']) == 2
+    assert '--rows' in capsys.readouterr().err
