@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 import contextlib
 import faulthandler
+import gc
 import signal
 import threading
 import time
@@ -205,5 +206,9 @@ def _entry(make_node: Callable[[], N], task: Callable[[N], int], args: list[str]
         code = interrupted
     finally:
         _shut_down(node, limit)
+        # The last rclpy objects (the node and its context, kept by reference cycles through
+        # their callbacks) go now, while the interpreter is whole, not in its finalization.
+        node = None
+        _shielded([gc.collect])
         limit.disarm()          # the stop signals stay ignored: nothing interrupts this
     return code

@@ -310,3 +310,29 @@ def test_a_crash_in_c_prints_where_it_happened() -> None:
     assert proc.returncode == -signal.SIGSEGV, (proc.returncode, err[-2000:])
     assert 'Fatal Python error: Segmentation fault' in err, err[-2000:]
     assert 'in crash_in_c' in err, err[-2000:]
+
+
+def test_no_rclpy_object_outlives_run() -> None:
+    """run() ends with the node, its executor and its context collected (not left to the
+    interpreter's finalization)."""
+    script = """
+import gc, sys
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import Executor
+from hrn_vo_ros.nodes.process import run
+from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+
+class Node(PacketizerNode):
+    def __init__(self):
+        super().__init__()
+        self.create_timer(0.3, rclpy.try_shutdown)
+
+code = run(Node)
+live = [type(o).__name__ for o in gc.get_objects()
+        if isinstance(o, (Context, Executor, PacketizerNode))]
+print('live', live, flush=True)
+sys.exit(code)
+"""
+    proc = start([sys.executable, '-c', script])
+    assert 'live []' in finish(proc, time.monotonic())
