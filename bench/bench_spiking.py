@@ -12,7 +12,11 @@ Prints, measured in this run:
    HRN's CPU operation counts (fast and dense path); ``--write-docs`` puts the table into
    docs/spiking.md;
 3. the frames/s of the float backend and of the spiking emulation (run back to back);
-4. (``--resources``) the resource report of ``hrn-vo spiking-report`` on the first seed's
+4. (``--layers``) on the first seed (up to 200 frames): per population of the sparse
+   transforms, the relative rms error of its graded payloads against 24-bit ones and the share
+   of its neurons they silence (``core/spiking/report.py`` ``PayloadProbe``): where the payload
+   width costs;
+5. (``--resources``) the resource report of ``hrn-vo spiking-report`` on the first seed's
    frames: neurons, synapses, cores and chips, per-iteration spikes, synaptic operations,
    energy and time with their sources, the dense reference form and the CPU's figures.
 
@@ -59,7 +63,7 @@ from hrn_vo_ros.core.hrn.config import needs_focal, ResonatorConfig  # noqa: E40
 from hrn_vo_ros.core.sim.simulator import simulate  # noqa: E402
 from hrn_vo_ros.core.spiking.accounting import cpu_ops  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
-from hrn_vo_ros.core.spiking.report import report  # noqa: E402
+from hrn_vo_ros.core.spiking.report import payload_errors, payload_lines, report  # noqa: E402
 from hrn_vo_ros.errors import DatasetError  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import load_configs  # noqa: E402
 
@@ -164,6 +168,9 @@ def main() -> int:
     ap.add_argument('--write-docs', action='store_true', help=f'write the table into {DOC}')
     ap.add_argument('--resources', action='store_true',
                     help='print the resource report on the first seed (up to 300 frames)')
+    ap.add_argument('--layers', action='store_true',
+                    help='per population of the sparse transforms, on the first seed (up to 200 '
+                         'frames): its payload rounding against 24-bit payloads')
     ap.add_argument('--cache', type=Path, default=None, help='cache simulated frames here')
     ap.add_argument('--synthetic', action='store_true',
                     help='known-motion synthetic frames instead of simulated sequences')
@@ -233,6 +240,11 @@ def main() -> int:
           f'(>= 50: {"ok" if fs >= 50 else "FAIL"}), ratio float/spiking {ff / fs:.1f}')
     if args.resources and first is not None:
         print_resources(cfg, spk.spiking, first[0], first[1])
+    if args.layers and first is not None:
+        print()
+        probe = payload_errors(cfg, spk.spiking, first[0][:200], first[1][:200])
+        for line in payload_lines(probe, spk.spiking):
+            print(line, flush=True)
     if args.sweep and first is not None:
         table = sweep(cfg, first, args.seeds[0])
         print('\n' + table)

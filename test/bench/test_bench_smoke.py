@@ -41,8 +41,10 @@ CASES = {
                        'rectify equidistant (')),
     # 1 s is the shortest simulated sequence; 60 frames keep the spiking emulation short (the
     # geodesic columns then read "not evaluated": the lag search needs > 2 s)
-    'spiking': Case('bench_spiking.py', ('--seeds', '1', '--seconds', '1', '--frames', '60'),
-                    ('seed   1: 60 frames', 'frames/s (median per-frame time)')),
+    'spiking': Case('bench_spiking.py', ('--seeds', '1', '--seconds', '1', '--frames', '60',
+                                         '--layers'),
+                    ('seed   1: 60 frames', 'frames/s (median per-frame time)',
+                     'payload rounding per population', "Λ': fft_x stages")),
     # 2.5 s: the evaluation's lag search needs more than 2 s of overlap
     'accuracy': Case('bench_accuracy.py', ('--kinds', 'rotation', '--seeds', '1', '--seconds',
                                            '2.5', '--work', '{work}'),

@@ -185,3 +185,65 @@ def report(cfg: ResonatorConfig, scfg: SpikingConfig, frames: Sequence[Any] | No
         t, imgs = frames
         lines += activity_lines(cfg, res, measure(cfg, scfg, t, imgs, dense=dense))
     return lines
+
+
+class PayloadProbe:
+    """Where the graded spikes' payloads round: each population of the sparse transforms
+    against the same population with ``reference_bits`` payloads, on the same input.
+
+    A :attr:`PhasorCode.probe <hrn_vo_ros.core.spiking.transforms.PhasorCode.probe>`: per
+    label, the relative rms error ``sqrt(sum |out - ref|^2 / sum |ref|^2)`` (the phase grid and
+    the decay table are the same in both, so this is the payload's rounding alone), the share
+    of the neurons the reference fires that the payload silences (their value rounds to 0),
+    and how many times the population fired.
+    """
+
+    def __init__(self, scfg: SpikingConfig, reference_bits: int = 24) -> None:
+        from hrn_vo_ros.core.spiking.transforms import PhasorCode
+        self.reference_bits = reference_bits
+        self._ref = PhasorCode(_with(scfg, payload_bits=reference_bits,
+                                     transform_payload_bits=reference_bits))
+        self._sums: dict[str, list[float]] = {}
+
+    def __call__(self, label: str, z: NDArray[np.complex64], out: NDArray[np.complex64]
+                 ) -> None:
+        ref = self._ref.fire(z)
+        s = self._sums.setdefault(label, [0.0, 0.0, 0.0, 0.0, 0.0])
+        s[0] += float(np.sum(np.abs(out - ref) ** 2))
+        s[1] += float(np.sum(np.abs(ref) ** 2))
+        fired = ref != 0
+        s[2] += float(np.count_nonzero(fired & (out == 0)))
+        s[3] += float(np.count_nonzero(fired))
+        s[4] += 1.0
+
+    def rows(self) -> list[tuple[str, float, float, int]]:
+        """(label, relative rms error, share silenced, fires) in the order first fired."""
+        return [(k, float(np.sqrt(s[0] / s[1])) if s[1] > 0 else 0.0,
+                 s[2] / s[3] if s[3] > 0 else 0.0, int(s[4])) for k, s in self._sums.items()]
+
+
+def payload_errors(cfg: ResonatorConfig, scfg: SpikingConfig, t: NDArray[np.int64],
+                   imgs: NDArray[Any], reference_bits: int = 24) -> PayloadProbe:
+    """Run the sparse spiking form on the frames with a :class:`PayloadProbe` on its
+    transforms' populations (the cleanups' populations are not in it)."""
+    backend = SpikingHRN(cfg, rng=np.random.default_rng(0),
+                         spiking=_with(scfg, transform='sparse'))
+    engine = backend._spiking_engine
+    if not isinstance(engine, SparseSpikingEngine):
+        raise ConfigError('payload errors are measured on the sparse transforms, which this '
+                          'resonator config does not support (see sparse_supported)')
+    probe = PayloadProbe(scfg, reference_bits)
+    engine.tf.code.probe = probe
+    for i in range(len(t)):
+        backend.step(imgs[i], int(t[i]))
+    return probe
+
+
+def payload_lines(probe: PayloadProbe, scfg: SpikingConfig) -> list[str]:
+    """The table of :func:`payload_errors`, worst relative error first."""
+    out = [f'payload rounding per population of the sparse transforms ({scfg.transform_bits}'
+           f'-bit payloads against {probe.reference_bits}-bit; the same phase grid):',
+           f'  {"population":<40} {"rel. rms error":>14} {"silenced":>9} {"fires":>7}']
+    for label, err, silenced, n in sorted(probe.rows(), key=lambda r: -r[1]):
+        out.append(f'  {label:<40} {err:>14.4f} {silenced:>9.3f} {n:>7d}')
+    return out

@@ -97,6 +97,7 @@ class SparseSpikingEngine(SpikingEngine):
         """The map population's spikes (re-encoded when the map changed)."""
         if self._m_src is not self.m:
             self._m_src = self.m
+            self.tf.code.label = 'map population'
             self._m_sp = self.tf.code.fire(np.asarray(self.m, np.complex64))
             self._n_m = self.tf.code.last_count
         return self._m_sp

@@ -33,6 +33,7 @@ half-LSBs) stays below that payload's own rounding (half a unit, 0.29 rms) for k
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 import math
 
@@ -63,7 +64,9 @@ class PhasorCode:
     population's largest magnitude; ``B = 1``: unit payloads, the unit nearest the mean
     magnitude) and ``u[t]`` the phase a spike at step ``t`` has at the end of the receiving
     neuron's cycle (``e^{i 2 pi t / T}``; ``precision='loihi'``: ``rho^(T - t)``).
-    ``last_count`` is the number of neurons that fired.
+    ``last_count`` is the number of neurons that fired. ``label`` names the population that
+    fires next (set by its layer); ``probe``, when set, is called as ``probe(label, z, out)``
+    after each fire (a diagnostic: :class:`hrn_vo_ros.core.spiking.report.PayloadProbe`).
     """
 
     def __init__(self, cfg: SpikingConfig) -> None:
@@ -81,9 +84,17 @@ class PhasorCode:
         self._by_code = self.table[code_steps(steps)]               # per phase code
         self.last_count = 0
         self.last_silent: NDArray[np.intp] | None = None   # flat indices of the silent neurons
+        self.label = ''
+        self.probe: Callable[[str, C64, C64], None] | None = None
 
     def fire(self, z: C64) -> C64:
         """The values the population's spikes carry (same shape as ``z``)."""
+        out = self._fire(z)
+        if self.probe is not None:
+            self.probe(self.label, z, out)
+        return out
+
+    def _fire(self, z: C64) -> C64:
         cfg = self.cfg
         mag = np.abs(z)
         top = float(mag.max()) if mag.size else 0.0
@@ -215,6 +226,7 @@ class SparseTransforms:
             canvas: (H_c, W_c) real; returns (n_rho, n_theta) complex64.
         """
         g = self.g
+        self.code.label = 'S: pixels'
         pix = self.code.fire(np.asarray(canvas, np.complex64).ravel())
         lp = self._taps(self.T, pix, self.code.last_count, 'S: T taps (pixels → log-polar)')
         lp = lp.reshape(g.n_rho, g.n_theta)
@@ -258,6 +270,7 @@ class SparseTransforms:
         synops = (layer.synapses if live == x.size
                   else layer.synapses - int(layer.col_synops[np.flatnonzero(x == 0)].sum()))
         self._count(name, live, synops, layer.matrix.shape[0])
+        self.code.label = name
         return self.code.fire(np.asarray(layer.matrix @ x, np.complex64))
 
     def _axis(self, x: C64, key: str, axis: int, name: str, fire_input: bool = False) -> C64:
@@ -286,6 +299,7 @@ class SparseTransforms:
                 synops += ax.spike_synops(front != 0, s)
             spikes += live
             neurons += front.size
+            self.code.label = f'{name} {i + 1}/{len(ax.stages)}'
             front = self.code.fire(ax.stage(front, s))
             live, silent = self.code.last_count, self.code.last_silent
         self._count(name, spikes, synops, neurons)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 
 from hrn_synth import event_frame, random_scene, trajectory
 import numpy as np
@@ -332,3 +333,52 @@ def test_phasor_code_threshold_and_binary_spikes_match_the_neuron_code() -> None
                 SpikingConfig(precision='float', payload_bits=1, fire_threshold=0.5)):
         got = PhasorCode(cfg).fire(z.astype(np.complex64))
         np.testing.assert_allclose(got, encode(z, cfg).decode(), rtol=1e-5, atol=1e-5)
+
+
+def test_payload_probe_measures_the_rounding_against_wide_payloads() -> None:
+    # hand-computed: on 8 bits the unit is 2^ceil(log2(1000/255)) = 4, so 1000 carries 250
+    # units and 1 rounds to silence; on 24 bits both are exact. Error 1/sqrt(1000^2 + 1),
+    # one neuron of two silenced. On 12 bits (unit 2^-2) both are exact: no error.
+    from hrn_vo_ros.core.spiking.report import PayloadProbe
+    z = np.array([1000.0, 1.0], np.complex64)
+    for bits, err, silenced in ((8, 1 / math.hypot(1000, 1), 0.5), (12, 0.0, 0.0)):
+        cfg = SpikingConfig(transform_payload_bits=bits)
+        code, probe = PhasorCode(cfg), PayloadProbe(cfg)
+        code.probe, code.label = probe, 'two neurons'
+        out = code.fire(z)
+        assert np.count_nonzero(out) == (1 if bits == 8 else 2)
+        ((label, got_err, got_silenced, fires),) = probe.rows()
+        assert (label, fires, got_silenced) == ('two neurons', 1, silenced)
+        assert got_err == pytest.approx(err, rel=1e-4, abs=1e-9)
+
+
+def test_payload_errors_cover_every_transform_population() -> None:
+    """On known-motion frames: every population of S, Λ', Λ and the map update is probed; on
+    24-bit payloads nothing differs from the reference; on 8 bits the last fft_x stage of Λ'
+    is among the worst (its 2-D spectrum's DC sets the unit)."""
+    from hrn_vo_ros.core.hrn.config import paper_config
+    from hrn_vo_ros.core.spiking.report import payload_errors, payload_lines
+    cfg = paper_config()
+    rng = np.random.default_rng(2)
+    scene = random_scene(rng)
+    imgs = np.array([event_frame(scene, tuple(p), rng)
+                     for p in trajectory(6, amp_xy=3.0, amp_roll=0.1, period=50.0)])
+    t = np.arange(len(imgs), dtype=np.int64) * 5_000_000
+    rows = {}
+    for bits in (8, 24):
+        scfg = SpikingConfig(transform_payload_bits=bits)
+        probe = payload_errors(cfg, scfg, t, imgs)
+        rows[bits] = {label: (err, silenced) for label, err, silenced, _ in probe.rows()}
+        assert payload_lines(probe, scfg)[0].startswith(f'payload rounding per population '
+                                                        f'of the sparse transforms ({bits}-bit')
+    labels = set(rows[8])
+    assert {'S: pixels', 'S: T taps (pixels → log-polar)', "Λ': T' taps", 'Λ: T taps',
+            'map population', "map: Λ': T' taps"} <= labels
+    assert any(label.startswith("Λ': fft_x stages ") for label in labels), labels
+    assert set(rows[24]) == labels
+    assert all(err == 0.0 and silenced == 0.0 for err, silenced in rows[24].values()), rows[24]
+    worst = sorted(rows[8], key=lambda k: -rows[8][k][0])[:4]
+    assert any(k.startswith("Λ': fft_x stages") for k in worst), rows[8]
+    # binary pixels are exact on any width; every other population rounds
+    assert rows[8]['S: pixels'] == (0.0, 0.0)
+    assert all(err > 0.0 for k, (err, _) in rows[8].items() if k != 'S: pixels'), rows[8]
