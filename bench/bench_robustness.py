@@ -746,6 +746,8 @@ def paired(runs: list[tuple[str, list[Row]]], kinds: list[str]) -> list[str]:
                    for label, rows in runs for m in METHODS}
         cols = [c for c, v in verdict.items() if v]
         if len(cols) < 2:
+            lines.append(f'{kind}: {len(cols)} column (run and method): nothing to pair; '
+                         'give --rows files of runs on the same draws')
             continue
         seeds = sorted(set.intersection(*(set(verdict[c]) for c in cols)))
         names = [f'{label}/{m}' for label, m in cols]

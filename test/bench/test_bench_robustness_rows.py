@@ -173,5 +173,8 @@ def test_paired_runs_are_compared_draw_by_draw_on_the_draws_all_have(
             w.writerows(robustness.asdict(r) for r in rows)
     assert robustness.main(['--rows', *map(str, paths), '--paired']) == 0
     assert capsys.readouterr().out.splitlines() == lines
+    assert robustness.paired([('b', b)], ['rotation']) == [
+        'rotation: 1 column (run and method): nothing to pair; give --rows files of runs on '
+        'the same draws']
     assert robustness.main(['--paired']) == 2
     assert '--rows' in capsys.readouterr().err
