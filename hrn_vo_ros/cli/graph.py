@@ -52,6 +52,10 @@ class NodeProcess:
     proc: subprocess.Popen[bytes]
     log: Path
 
+    def tail(self, chars: int = 2000) -> str:
+        """The end of its log."""
+        return self.log.read_text(errors='replace')[-chars:]
+
 
 def ros_args(params_file: Path | None = None, params: dict[str, object] | None = None,
              remaps: dict[str, str] | None = None) -> list[str]:
@@ -119,8 +123,7 @@ class Graph:
         for n in self.nodes:
             code = n.proc.poll()
             if code is not None and code != 0:
-                tail = n.log.read_text(errors='replace')[-2000:]
-                raise GraphError(f'{n.name} exited with code {code}; log {n.log}:\n{tail}')
+                raise GraphError(f'{n.name} exited with code {code}; log {n.log}:\n{n.tail()}')
 
     def stop(self, timeout: float = 30.0) -> dict[str, int]:
         """SIGINT every running node (last started first), then wait; kill after ``timeout``."""
@@ -135,6 +138,11 @@ class Graph:
                 codes[n.name] = n.proc.wait()
         self.nodes.clear()
         return codes
+
+    def failed_logs(self, codes: dict[str, int], chars: int = 3000) -> dict[str, str]:
+        """The end of the log of every node whose exit code in ``codes`` is not 0."""
+        return {n: (self.log_dir / f'{n}.log').read_text(errors='replace')[-chars:]
+                for n, c in codes.items() if c != 0}
 
 
 class Monitor:
@@ -277,7 +285,7 @@ def run_graph(bag: Path, out_bag: Path, log_dir: Path, *, params_file: Path | No
         mon.wait(lambda: player.proc.poll() is not None, timeout, 'the bag player', graph)
         if player.proc.returncode != 0:
             raise GraphError(f'the bag player failed (exit {player.proc.returncode}); log '
-                             f'{player.log}:\n{player.log.read_text(errors="replace")[-2000:]}')
+                             f'{player.log}:\n{player.tail()}')
         graph.nodes.remove(player)
         done = _settled(mon, graph, packets, settle_s, timeout)
         diags = dict(mon.diags)

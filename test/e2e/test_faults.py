@@ -157,8 +157,7 @@ def pipeline(ros: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[
         probe.node.destroy_node()
         logs = {n: (graph.log_dir / f'{n}.log').read_text(errors='replace')
                 for n in codes}
-    assert all(c == 0 for c in codes.values()), (codes, {
-        n: logs[n][-3000:] for n, c in codes.items() if c != 0})
+    assert all(c == 0 for c in codes.values()), (codes, graph.failed_logs(codes))
     assert not [n for n, text in logs.items() if 'Traceback' in text], logs
 
 

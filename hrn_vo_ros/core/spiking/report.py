@@ -27,6 +27,7 @@ from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.hardware import LOIHI1, SOURCES
 from hrn_vo_ros.core.spiking.resources import NetworkResources
 from hrn_vo_ros.core.spiking.sparse_engine import SparseSpikingEngine
+from hrn_vo_ros.core.spiking.transforms import PhasorCode
 from hrn_vo_ros.errors import ConfigError
 
 #: The acceptance target of the sparse form: synaptic operations per resonator iteration.
@@ -199,7 +200,6 @@ class PayloadProbe:
     """
 
     def __init__(self, scfg: SpikingConfig, reference_bits: int = 24) -> None:
-        from hrn_vo_ros.core.spiking.transforms import PhasorCode
         self.reference_bits = reference_bits
         self._ref = PhasorCode(_with(scfg, payload_bits=reference_bits,
                                      transform_payload_bits=reference_bits))
