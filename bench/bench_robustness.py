@@ -585,10 +585,10 @@ def motion_of(r: Row) -> float:
 
 def junk_share(d: Any, events_per_s: float) -> float:
     """The share of a draw's events that are background noise or hot pixels, from its
-    simulator settings (noise Hz per sensor pixel, hot pixels and their rate) over its
+    simulator settings (noise Hz per sensor pixel, the hot pixels' expected rate) over its
     measured event rate; capped at 1."""
     c = d.config
-    junk = c.noise_rate_hz * d.calib.width * d.calib.height + c.hot_pixels * c.hot_pixel_rate_hz
+    junk = c.noise_rate_hz * d.calib.width * d.calib.height + c.hot_events_per_s
     return min(junk / events_per_s, 1.0) if events_per_s > 0 else 1.0
 
 

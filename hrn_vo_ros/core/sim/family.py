@@ -33,7 +33,7 @@ runs); they draw like the others. The split is by seed only, the same for every 
   field of view, centre within ±3 %, k1 -0.15 to 0 on half of the draws.
 * sensor: contrast threshold 0.12-0.45, its per-pixel spread 0-30 % of it, refractory period
   logU 20 µs-2 ms, background activity logU 0.01-1 Hz per pixel, 0-30 hot pixels at
-  logU 30-1000 Hz.
+  a nominal logU 30-1000 Hz (each 0.3-2.0 times it: ``HOT_RATE_RANGE``).
 * motion (rotation, translation): amplitude ramping from 20-80 % to 100 % and speed rising
   2-9x over the sequence (as in the Event Camera Dataset), smooth (p = 0.6) or jerky (a faster
   component of 10-35 %), 0-3 pauses of 0.3-1.5 s, peak angular speed logU 20-700 deg/s

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import undistort_points
 from hrn_vo_ros.core.events.sequence import CameraCalibration
-from hrn_vo_ros.core.sim.config import LOG_EPS, SimulatorConfig
+from hrn_vo_ros.core.sim.config import HOT_RATE_RANGE, LOG_EPS, SimulatorConfig
 from hrn_vo_ros.core.sim.motion import Motion
 from hrn_vo_ros.core.sim.textures import Texture
 
@@ -248,7 +248,7 @@ def simulate_events(scene: Scene, seconds: float, cfg: SimulatorConfig, rng: np.
     L_prev = renderer.render(times[:1])[0]
     gen = EventGenerator(n_pix, cfg, rng, L_prev)
     hot = rng.choice(n_pix, size=min(cfg.hot_pixels, n_pix), replace=False).astype(np.intp)
-    hot_rates = cfg.hot_pixel_rate_hz * rng.uniform(0.3, 2.0, hot.size)
+    hot_rates = cfg.hot_pixel_rate_hz * rng.uniform(*HOT_RATE_RANGE, hot.size)
     quantum = cfg.timestamp_resolution_s
     parts_t: list[NDArray[np.int64]] = []
     parts_pix: list[NDArray[np.intp]] = []

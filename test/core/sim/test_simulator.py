@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +84,18 @@ def test_noise_adds_events_everywhere() -> None:
     extra = len(noisy.events) - len(quiet.events)
     expected = 5.0 * 240 * 180 * 0.3
     assert abs(extra - expected) < 0.15 * expected
+
+
+def test_hot_pixels_fire_at_their_expected_rate() -> None:
+    """2000 hot pixels at a nominal 50 Hz for 0.3 s: each fires at 0.3-2.0 times the nominal
+    rate, 1.15 times on average, so 2000 * 50 * 1.15 * 0.3 = 34500 events beyond the quiet
+    sensor's (the spread of 2000 rate factors and the Poisson counts: about 1.2 %)."""
+    cfg = replace(QUIET, hot_pixels=2000, hot_pixel_rate_hz=50.0)
+    assert cfg.hot_events_per_s == pytest.approx(2000 * 50.0 * 1.15)
+    hot = simulate('rotation', 0.3, seed=12, config=cfg)
+    quiet = simulate('rotation', 0.3, seed=12, config=QUIET)
+    extra = len(hot.events) - len(quiet.events)
+    assert extra == pytest.approx(34500, rel=0.04)
 
 
 def test_gyro_integrates_to_ground_truth(quiet_rotation: Sequence) -> None:
