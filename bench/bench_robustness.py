@@ -43,7 +43,11 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   and band of the *motion per frame* (CSV columns ``frame_deg``, ``frame_m``: the 95th
   percentile of the camera's turn and travel from one frame to the next, ``motion_between``
   of ``core/evaluation/samples.py``;
-  with the scene rate the best predictors of a track on the family); a
+  with the scene rate the best predictors of a track on the family) and band of the frames'
+  *structure* (CSV column ``structure``: the median over the frames a method ran on of their
+  4-neighbouring on-pixel pairs against randomly placed pixels, ``frame_structure`` of
+  ``core/evaluation/content.py``; about 1 where the frames are as scattered as noise, and
+  measured from the frames alone, so it reads the same on recordings); a
   last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
   ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
   evaluation's doing or the estimator's own delay) and names those it gains and loses.
@@ -120,6 +124,7 @@ from bench_accuracy import CASES  # noqa: E402
 from hrn_vo_ros.cli.evaluate import FAST_TURN_DEG  # noqa: E402
 from hrn_vo_ros.cli.run import parse_size  # noqa: E402
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
+from hrn_vo_ros.core.evaluation.content import frame_structure  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate, LAG_WINDOWS  # noqa: E402
 from hrn_vo_ros.core.evaluation.samples import motion_between  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
@@ -187,6 +192,8 @@ class Row:
     frame_deg: float = math.nan   # the camera's turn from one frame to the next, 95th
                                   # percentile over the draw (deg; motion_between)
     frame_m: float = math.nan     # ... and its travel (m)
+    structure: float = math.nan   # median neighbour_ratio of the frames the method ran on
+                                  # (core/evaluation/content.py: 1 = as scattered as noise)
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -389,6 +396,7 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
     gyro_packets = imu_framing(kind)
     framings = {imu: _frames(kind, seed, seconds, cache, imu)
                 for imu in {m == 'hrn_imu' and gyro_packets for m in methods}}
+    structure = {imu: frame_structure(f[4]) for imu, f in framings.items()}
     out = []
     for method in methods:
         d, seq, info, t, imgs = framings[method == 'hrn_imu' and gyro_packets]
@@ -445,7 +453,8 @@ def job(task: tuple[str, int, float, tuple[str, ...], str, str]) -> list[Row]:
                        len(eps), silent, late, reloc, wall, note,
                        d.summary(), scale, silent_tc, late_tc, lag,
                        junk_share(d, info['events_per_s']), tracked0,
-                       *motion_between(seq.groundtruth, t)))
+                       *motion_between(seq.groundtruth, t),
+                       structure[method == 'hrn_imu' and gyro_packets]))
     return out
 
 
@@ -559,6 +568,13 @@ JUNK_BANDS = ((0.0, 0.15, 'junk <15%'), (0.15, 0.5, '15-50%'), (0.5, math.inf, '
 SCENE_BANDS = ((0.0, 1e4, 'scene <10k ev/s'), (1e4, 5e4, '10-50k'), (5e4, math.inf, '>=50k'))
 
 
+#: Bands of the frames' structure (:func:`frame_structure`, the median over a draw's frames of
+#: their 4-neighbour on-pixel pairs over the count of randomly placed pixels): below 1.5 the
+#: frames are about as scattered as noise (fresh 10240-10359: 1 of 13 such draws tracked
+#: without the gyro).
+STRUCTURE_BANDS = ((0.0, 1.5, 'structure <1.5'), (1.5, 3.0, '1.5-3'), (3.0, math.inf, '>=3'))
+
+
 def scene_rate(r: Row) -> float:
     """The draw's scene events per second: its event rate less the junk share (NaN where
     the row has no junk share)."""
@@ -631,8 +647,10 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
     scene-rate band, and the unevaluated rows by cause: where each method fails."""
     lines = ['tracked per scene class, event rate, background noise (Hz per pixel), share '
              'of noise and hot-pixel events (junk), rate of the other events (scene) and the '
-             "camera's motion from one frame to the next (95th percentile); unevaluated: too "
-             'few estimates (few), an estimate that never moves (still), other']
+             "camera's motion from one frame to the next (95th percentile) and the frames' "
+             'structure (neighbouring on pixels against random placement, median; 1: as '
+             'scattered as noise); unevaluated: too few estimates (few), an estimate that never '
+             'moves (still), other']
     for kind in kinds:
         for method in methods:
             rs = [r for r in rows if r.kind == kind and r.method == method]
@@ -645,7 +663,8 @@ def breakdown(rows: list[Row], kinds: list[str], methods: list[str]) -> list[str
             for bands, value in ((RATE_BANDS, lambda r: r.events_per_s),
                                  (NOISE_BANDS, noise_of), (JUNK_BANDS, lambda r: r.junk),
                                  (SCENE_BANDS, scene_rate),
-                                 (MOTION_BANDS[UNIT[kind]], motion_of)):
+                                 (MOTION_BANDS[UNIT[kind]], motion_of),
+                                 (STRUCTURE_BANDS, lambda r: r.structure)):
                 for lo, hi, name in bands:
                     sub = [r for r in rs if (x := value(r)) is not None and lo <= x < hi]
                     if sub:
@@ -715,6 +734,16 @@ _PARSE: dict[str, Any] = {'int': int, 'float': float, 'str': str, 'bool': lambda
 def _label(path: Path, paths: list[Path]) -> str:
     """A run's name in ``--paired``: its file's stem, or its path when stems repeat."""
     return path.stem if [q.stem for q in paths].count(path.stem) == 1 else str(path)
+
+
+def write_rows(path: Path, rows: list[Row]) -> None:
+    """The ``--csv`` file of some rows (:func:`read_rows` reads it back)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, 'w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=[x.name for x in fields(Row)])
+        w.writeheader()
+        for r in rows:
+            w.writerow(asdict(r))
 
 
 def read_rows(path: Path) -> list[Row]:
@@ -980,12 +1009,7 @@ def main(argv: list[str] | None = None) -> int:
                                                                           args.methods):
         print(line)
     if args.csv is not None:
-        args.csv.parent.mkdir(parents=True, exist_ok=True)
-        with open(args.csv, 'w', newline='') as f:
-            w = csv.DictWriter(f, fieldnames=list(asdict(rows[0])))
-            w.writeheader()
-            for r in rows:
-                w.writerow(asdict(r))
+        write_rows(args.csv, rows)
         print(f'rows -> {args.csv}')
     if args.plot is not None:
         plot(rows, args.kinds, args.methods, args.plot)

@@ -132,6 +132,25 @@ def test_the_motion_per_frame_bands() -> None:
     assert '<0.5 cm/frame 1/1, >=1 1/1, unevaluated' in lines[2]
 
 
+def test_the_frame_structure_bands(tmp_path: Path) -> None:
+    """Rows fall in the structure bands at their edges (1.5 and 3 in the upper band), a row
+    without the figure in none; the figure reads back from a CSV written as the bench writes
+    it."""
+    rows = [robustness.Row('rotation', s, 'hrn', 10.0, 1e5, 100.0, err, False, 0.0, 0, 0, 0,
+                           '', 1.0, '', 'draw', structure=x)
+            for s, err, x in [(1, 50.0, 1.49), (2, 0.5, 1.5), (3, 0.5, 3.0), (4, 0.5, 2.9),
+                              (5, 0.5, math.nan)]]
+    line = robustness.breakdown(rows, ['rotation'], ['hrn'])[1]
+    assert line.endswith('structure <1.5 0/1, 1.5-3 2/2, >=3 1/1, '
+                         'unevaluated few 0 still 0 other 0')
+    assert 'structure' in robustness.breakdown(rows, ['rotation'], ['hrn'])[0]
+    path = tmp_path / 'rows.csv'
+    robustness.write_rows(path, rows)
+    back = robustness.read_rows(path)
+    assert [r.structure for r in back[:4]] == [1.49, 1.5, 3.0, 2.9]
+    assert math.isnan(back[4].structure)
+
+
 def test_the_sign_test_of_a_paired_split_is_the_exact_binomial_tail() -> None:
     # 8 / 1: 2 (C(9,0) + C(9,1)) / 2^9 = 20 / 512; 5 / 0: 2 / 32; 4 / 4 and 0 / 0: 1
     assert robustness.sign_test_p(8, 1) == robustness.sign_test_p(1, 8) == 20 / 512

@@ -72,7 +72,7 @@ CASES = {
                         'sensor 320 px wide, 180 high',
                         'tracked  time ok',
                         'rotation     hrn',
-                        'background noise', ' Hz ', 'unevaluated few',
+                        'background noise', ' Hz ', "frames' structure", 'unevaluated few',
                         'reported as tracking only', 'hrn       silent ',
                         '1 CSV, 1 PNG'),
                        then=('--rows', '{work}/r.csv', '--plot', '{work}/r.png'),
