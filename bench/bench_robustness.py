@@ -46,7 +46,7 @@ i.e. after its calibration fit, over all samples from 0.5 s on):
   with the scene rate the best predictors of a track on the family) and band of the frames'
   *structure* (CSV column ``structure``: the median over the frames a method ran on of their
   4-neighbouring on-pixel pairs against randomly placed pixels, ``frame_structure`` of
-  ``core/evaluation/content.py``; about 1 where the frames are as scattered as noise, and
+  ``core/events/content.py``; about 1 where the frames are as scattered as noise, and
   measured from the frames alone, so it reads the same on recordings); a
   last diagnostic line counts the draws tracked with the protocol's lag fixed at 0 (CSV column
   ``tracked_lag0``; a simulation's clocks are exact, so what the lag search moves is the
@@ -124,9 +124,9 @@ from bench_accuracy import CASES  # noqa: E402
 from hrn_vo_ros.cli.evaluate import FAST_TURN_DEG  # noqa: E402
 from hrn_vo_ros.cli.run import parse_size  # noqa: E402
 from hrn_vo_ros.core.evaluation.baseline import config_like, PhaseCorrelationBaseline  # noqa: E402
-from hrn_vo_ros.core.evaluation.content import frame_structure  # noqa: E402
 from hrn_vo_ros.core.evaluation.protocol import EstimateSeries, evaluate, LAG_WINDOWS  # noqa: E402
 from hrn_vo_ros.core.evaluation.samples import motion_between  # noqa: E402
+from hrn_vo_ros.core.events.content import frame_structure, NOISE_LIKE  # noqa: E402
 from hrn_vo_ros.core.events.frames import frames_from_events  # noqa: E402
 from hrn_vo_ros.core.events.packet_config import with_calibration  # noqa: E402
 from hrn_vo_ros.core.events.sequence import Sequence  # noqa: E402
@@ -193,7 +193,7 @@ class Row:
                                   # percentile over the draw (deg; motion_between)
     frame_m: float = math.nan     # ... and its travel (m)
     structure: float = math.nan   # median neighbour_ratio of the frames the method ran on
-                                  # (core/evaluation/content.py: 1 = as scattered as noise)
+                                  # (core/events/content.py: 1 = as scattered as noise)
 
 
 #: Resonator overrides of the HRN methods (``--set``), set in each worker by :func:`_init`.
@@ -569,10 +569,10 @@ SCENE_BANDS = ((0.0, 1e4, 'scene <10k ev/s'), (1e4, 5e4, '10-50k'), (5e4, math.i
 
 
 #: Bands of the frames' structure (:func:`frame_structure`, the median over a draw's frames of
-#: their 4-neighbour on-pixel pairs over the count of randomly placed pixels): below 1.5 the
-#: frames are about as scattered as noise (fresh 10240-10359: 1 of 13 such draws tracked
-#: without the gyro).
-STRUCTURE_BANDS = ((0.0, 1.5, 'structure <1.5'), (1.5, 3.0, '1.5-3'), (3.0, math.inf, '>=3'))
+#: their 4-neighbour on-pixel pairs over the count of randomly placed pixels): below
+#: ``NOISE_LIKE`` (1.5) the frames are about as scattered as noise.
+STRUCTURE_BANDS = ((0.0, NOISE_LIKE, f'structure <{NOISE_LIKE:g}'),
+                   (NOISE_LIKE, 3.0, f'{NOISE_LIKE:g}-3'), (3.0, math.inf, '>=3'))
 
 
 def scene_rate(r: Row) -> float:

@@ -13,6 +13,12 @@ driver restart the scene seen next need not match the map, and a network kept ac
 locked onto a wrong roll (the soak's looped bag: 19 of 29 later loops about 30 deg off); the
 next frame starts a new map and the pose starts again from the identity, as at start-up.
 
+The diagnostics also say how much scene the frames carry (``frame_structure``: the running mean
+of :func:`~hrn_vo_ros.core.events.content.neighbour_ratio`, rate :data:`STRUCTURE_RATE` per
+frame); while the track is degraded or lost on frames as scattered as noise (below
+:data:`~hrn_vo_ros.core.events.content.NOISE_LIKE`), the status says so: no odometry can follow
+a blank view or a stream of noise, and the fix is in the scene or the sensor, not the network.
+
 Each call yields, lazily and in order, :class:`~hrn_vo_ros.core.events.stream.Note` entries
 (rejects and warnings for the caller to count and log) and :class:`Step` results (one
 processed frame for the caller to publish); a frame is processed only when the caller asks for
@@ -24,12 +30,14 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
+import math
 import time
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hrn_vo_ros.core.clock import Recent, StampChecker, Verdict
+from hrn_vo_ros.core.events.content import neighbour_ratio, NOISE_LIKE
 from hrn_vo_ros.core.events.packet_config import VALIDATED_FRAME
 from hrn_vo_ros.core.events.sequence import CameraFocal
 from hrn_vo_ros.core.events.stream import Note
@@ -48,6 +56,9 @@ from hrn_vo_ros.core.odometry.publish import (
 )
 from hrn_vo_ros.core.pipeline import OdometryPipeline
 from hrn_vo_ros.errors import HrnVoError
+
+#: Weight of the newest frame in the running mean of the frames' structure (about 10 frames).
+STRUCTURE_RATE = 0.1
 
 
 @dataclass(frozen=True, slots=True)
@@ -229,6 +240,7 @@ class LiveOdometry:
         self.size_mismatch = Recent(now)
         self.queue_dropped = Recent(now)     # frames the node's subscription queue dropped
         self.focal = FocalLength()           # focal_px, or a camera_info's
+        self.structure = math.nan            # running mean neighbour_ratio of the frames
         self._now = now
 
     def frame(self, t_ns: int, image: NDArray[np.uint8], s: LiveSettings) -> Iterator[Item]:
@@ -357,6 +369,10 @@ class LiveOdometry:
                  imu: bool) -> Iterator[Item]:
         """One frame through the pipeline (with the gyro increment when ``imu``), composed."""
         t0 = time.perf_counter()
+        r = neighbour_ratio(image)
+        if math.isfinite(r):
+            self.structure = (r if not math.isfinite(self.structure) else
+                              self.structure + STRUCTURE_RATE * (r - self.structure))
         try:
             est = self.pipeline.step(image, t_ns, use_gyro=imu)
         except HrnVoError as err:
@@ -410,7 +426,8 @@ class LiveOdometry:
                  ('gyro_bias_deg_s', ' '.join(
                      f'{b:+.3f}' for b in np.degrees(self.pipeline.estimator.gyro_bias.b)))]
                 + self.composer.diagnostic_values()
-                + [('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
+                + [('frame_structure', f'{self.structure:.2f}'),
+                   ('clock_resets', self.frame_clock.resets + self.imu_clock.resets)])
 
     def queue_drops(self, gaps: int, depth: int) -> Iterator[Item]:
         """Frames the node's subscription queue dropped (``gaps`` in all, queue ``depth``):
@@ -427,7 +444,11 @@ class LiveOdometry:
         states = []
         if self.size_mismatch.within(window_s):
             states.append(('error', f'every frame dropped: {self.size_mismatch.detail}'))
-        states.append(self.composer.status())
+        level, text = self.composer.status()
+        if level != 'ok' and self.structure < NOISE_LIKE:
+            text += (f'; the frames are as scattered as noise (structure {self.structure:.2f} '
+                     f'< {NOISE_LIKE:g}): a blank view, or a noisy sensor')
+        states.append((level, text))
         if self.last_reset.within(window_s):
             states.append(('warn', 'stamps went back: time state restarted'))
         states += more

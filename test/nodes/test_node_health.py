@@ -308,6 +308,8 @@ def test_covariance_follows_quality_and_lost_and_the_level_the_state(ros: list[N
     assert list(p.odoms[4].twist.covariance) == list((np.eye(6) * 1e6).reshape(36))
     st = p.wait_level('resonator_node', ERROR)
     assert 'lost' in st.message and st.values['tracking_state'] == 'lost'
+    # the diagonal frames have no 4-neighbouring on pixels: structure 0, said with the loss
+    assert st.values['frame_structure'] == '0.00' and 'scattered as noise' in st.message
     frame(5)                                                 # tracking again (quality 0.9)
     np.testing.assert_allclose(np.reshape(p.odoms[5].pose.covariance, (6, 6)),
                                base[5] / 0.81, rtol=1e-9)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from hrn_vo_ros.core.evaluation.content import frame_structure, neighbour_ratio
+from hrn_vo_ros.core.events.content import frame_structure, neighbour_ratio
 
 
 def test_pairs_are_counted_against_random_placement() -> None:
