@@ -51,7 +51,7 @@ from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.accounting import cores_for, IterationAccount
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup, step_many
 from hrn_vo_ros.core.spiking.config import SpikingConfig
-from hrn_vo_ros.core.spiking.neurons import encode, Spikes
+from hrn_vo_ros.core.spiking.neurons import encode, NEAREST, Rounding, Spikes
 from hrn_vo_ros.core.spiking.synapses import LayerCounts
 from hrn_vo_ros.errors import ConfigError
 
@@ -93,6 +93,7 @@ class SpikingEngine(FastEngine):
                               p_needs_max=same and ccfg.nonlinearity == 'exp')
             for k in self.books}
         self.spikes: dict[str, Spikes] = {}
+        self.rounding = NEAREST                 # set_rounding (start) gives the configured one
         self.sent: dict[str, Spikes] = {}
         self.pixels = 0
         self.account = IterationAccount()
@@ -104,12 +105,20 @@ class SpikingEngine(FastEngine):
         return np.asarray(super().encode(canvas), np.complex128)   # general form: double
 
     def start(self, canvas: Floats, rng: np.random.Generator) -> None:
+        self.set_rounding(rng)
         super().start(canvas, rng)
         for k, x in self.state.items():
-            self._set_state(k, encode(x, self.scfg, fire_threshold=0.0))
+            self._set_state(k, encode(x, self.scfg, fire_threshold=0.0, rounding=self.rounding))
+
+    def set_rounding(self, rng: np.random.Generator) -> None:
+        """Every population's payload rounding (``SpikingConfig.rounding``; stochastic: from
+        ``rng``, the network's generator)."""
+        self.rounding = Rounding(rng if self.scfg.rounding == 'stochastic' else None)
+        for cl in self.cleanups.values():
+            cl.rounding = self.rounding
 
     def send(self, name: str, x: Complex) -> Complex:
-        sp = encode(x, self.scfg)
+        sp = encode(x, self.scfg, rounding=self.rounding)
         self.sent[name] = sp
         return sp.decode()
 
@@ -142,7 +151,8 @@ class SpikingEngine(FastEngine):
         # IMU prediction: binding with a fractional power = a phase shift of every neuron,
         # then the state neurons send their (re-quantised) spikes.
         super().shift(name, delta)
-        self._set_state(name, encode(self.state[name], self.scfg, fire_threshold=0.0))
+        self._set_state(name, encode(self.state[name], self.scfg, fire_threshold=0.0,
+                                     rounding=self.rounding))
 
     def iterate(self, S: Complex) -> None:
         super().iterate(S)

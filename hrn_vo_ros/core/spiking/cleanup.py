@@ -32,8 +32,10 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
     encode_many,
+    NEAREST,
     phase_to_step,
     rf_cycle_populations,
+    Rounding,
     Spikes,
 )
 from hrn_vo_ros.core.spiking.synapses import (
@@ -85,6 +87,7 @@ class SpikingCleanup:
     _mix: ComplexSynapses = field(init=False)
     _theta: float = field(init=False)
     _dc: NDArray[np.intp] = field(init=False)
+    rounding: Rounding = field(init=False, default=NEAREST)   # the engine's (set_rounding)
 
     def __post_init__(self) -> None:
         x = np.asarray(self.codebook, dtype=np.complex128)
@@ -246,14 +249,16 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
     if not items:
         return []
     cfg = items[0][0].cfg
+    rnd = items[0][0].rounding
     u_sps = [cl._input(sp) for (cl, _, _), sp in zip(items, encode_many(
         [u for _, u, _ in items], cfg, wides=[cl._dc for cl, _, _ in items],
-        wide_bits=cfg.dc_payload_bits), strict=True)]
+        wide_bits=cfg.dc_payload_bits, rounding=rnd), strict=True)]
     sims = drive_many([(cl._sim, u_sp, cl.counts['similarity'])
                        for (cl, _, _), u_sp in zip(items, u_sps, strict=True)])
     ps = [cl._p(u_sp, a.real) for (cl, _, _), u_sp, a in zip(items, u_sps, sims, strict=True)]
     # Similarity neurons fire at the reference phase (t = 0) with graded payload p.
-    p_sps = encode_many([p.astype(np.complex128) for p in ps], cfg, fire_threshold=0.0)
+    p_sps = encode_many([p.astype(np.complex128) for p in ps], cfg, fire_threshold=0.0,
+                        rounding=rnd)
     drives = drive_many([(cl._out, p_sp, cl.counts['cleanup'])
                          for (cl, _, _), p_sp in zip(items, p_sps, strict=True)])
     # the cleanup neurons' spike steps (one pass for all factors' drives)
@@ -275,4 +280,5 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
         states[:] = per_population
     values = [cl._mix_value(pr, ri) for (cl, _, _), pr, ri in zip(items, pairs, states,
                                                                       strict=True)]
-    return list(zip(encode_many(values, cfg, fire_threshold=0.0), ps, strict=True))
+    return list(zip(encode_many(values, cfg, fire_threshold=0.0, rounding=rnd), ps,
+                    strict=True))

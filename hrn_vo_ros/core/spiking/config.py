@@ -81,6 +81,11 @@ class SpikingConfig:
     decay_bits: int = param(
         12, 'fractional bits of the fixed-point rotation (sin/cos) constants (Lava RF: 12)',
         lo=6, hi=16, read_only=True)
+    rounding: str = param(
+        'nearest', 'payload magnitudes rounded to the nearest unit, or stochastic: up with the '
+        'probability of the fraction, from a pseudo-random number per neuron and cycle '
+        "(dithered; unbiased; the network's rng; Loihi's compartments have a noise source)",
+        choices=('nearest', 'stochastic'), read_only=True)
     nonlinearity: str = param(
         'same', "p of the similarity neurons: same = the float backend's p on their state "
         '(exp needs a K-input max circuit), relu = ReLU(a - threshold * input mass)',

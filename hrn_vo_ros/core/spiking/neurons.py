@@ -92,6 +92,45 @@ class Spikes:
         return np.where(self.g > 0, unit[self.t], 0.0)
 
 
+class Rounding:
+    """How a payload magnitude, in units of its population's payload unit, becomes an integer
+    (``SpikingConfig.rounding``).
+
+    To the nearest (``rng`` None, :data:`NEAREST`), or stochastically: up with the probability
+    of the fraction, ``floor(x + u)`` with ``u`` uniform in [0, 1) from ``rng`` per neuron and
+    cycle (dithered rounding: unbiased, so a change of less than half a unit still moves the
+    mean of what a population sends, where rounding to the nearest can hold it in place cycle
+    after cycle). The values stay within the population's range (``x <= 2^B - 1`` gives at most
+    ``2^B - 1``).
+
+    Args:
+        rng: The source of the uniform numbers (None: round to the nearest).
+    """
+
+    def __init__(self, rng: np.random.Generator | None = None) -> None:
+        self.rng = rng
+
+    def __call__(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        """``x`` rounded (a new array)."""
+        if self.rng is None:
+            out: NDArray[np.floating] = np.rint(x)
+        else:
+            out = np.floor(x + self.rng.random(np.shape(x)))
+        return out
+
+    def inplace(self, x: NDArray[np.float32]) -> None:
+        """``x`` (float32) rounded in place."""
+        if self.rng is None:
+            np.rint(x, out=x)
+        else:
+            x += self.rng.random(x.shape, dtype=np.float32)
+            np.floor(x, out=x)
+
+
+#: Round to the nearest (``SpikingConfig.rounding = 'nearest'``).
+NEAREST = Rounding()
+
+
 def phase_to_step(z: NDArray[np.complexfloating], steps: int) -> Int:
     """Spike step ``round(arg(z) T / 2 pi) mod T`` of each value, via :func:`phase_codes`.
 
@@ -184,7 +223,8 @@ def payload_exponent(max_value: float, bits: int) -> int:
 
 
 def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = None,
-           wide: NDArray[np.intp] | None = None, wide_bits: int = 0) -> Spikes:
+           wide: NDArray[np.intp] | None = None, wide_bits: int = 0,
+           rounding: Rounding = NEAREST) -> Spikes:
     """Send complex values as phase-coded spikes with graded payloads.
 
     The payload unit is a power of two chosen from the population's largest magnitude (a
@@ -201,6 +241,7 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
             the unit is then the smallest that holds the others in ``payload_bits`` and these
             in ``wide_bits``, so one dominant neuron (a spectrum's DC term) does not set the
             unit of all ([design], cleanup inputs; graded payloads, ``payload_bits`` >= 2).
+        rounding: How the payloads are rounded (:class:`Rounding`; to the nearest).
 
     Shapes:
         z: any; the spikes have the same shape.
@@ -216,7 +257,7 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
         e = round(math.log2(mean)) if mean > 0.0 else 0
         return Spikes(t, live.astype(np.int64), e, cfg.steps_per_cycle)
     e = _population_exponent(mag, cfg, wide, wide_bits)
-    g = np.where(live, np.rint(np.ldexp(mag, -e)), 0.0).astype(np.int64)
+    g = np.where(live, rounding(np.ldexp(mag, -e)), 0.0).astype(np.int64)
     return Spikes(t, g, e, cfg.steps_per_cycle)
 
 
@@ -236,8 +277,8 @@ def _population_exponent(mag: NDArray[np.floating], cfg: SpikingConfig,
 
 
 def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float | None = None,
-                wides: list[NDArray[np.intp] | None] | None = None, wide_bits: int = 0
-                ) -> list[Spikes]:
+                wides: list[NDArray[np.intp] | None] | None = None, wide_bits: int = 0,
+                rounding: Rounding = NEAREST) -> list[Spikes]:
     """:func:`encode` of several populations, each with its own payload unit (and its own
     ``wide`` neurons), the per-neuron steps run once on all their neurons (the same spikes).
 
@@ -248,7 +289,8 @@ def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float 
     wl = [None] * len(zs) if wides is None else wides
     if (len(zs) < 2 or cfg.payload_bits == 1 or thr > 0.0
             or len({np.asarray(z).dtype for z in zs}) > 1):
-        return [encode(z, cfg, fire_threshold=thr, wide=w, wide_bits=wide_bits)
+        return [encode(z, cfg, fire_threshold=thr, wide=w, wide_bits=wide_bits,
+                       rounding=rounding)
                 for z, w in zip(zs, wl, strict=True)]
     flat = np.concatenate([np.ravel(z) for z in zs])
     mag = np.abs(flat)
@@ -258,7 +300,7 @@ def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float 
     exps = [_population_exponent(mag[end - n:end], cfg, w, wide_bits)
             for n, end, w in zip(sizes, ends, wl, strict=True)]
     e = np.repeat(-np.array(exps, np.int64), sizes)
-    g = np.where(mag > 0.0, np.rint(np.ldexp(mag, e)), 0.0).astype(np.int64)
+    g = np.where(mag > 0.0, rounding(np.ldexp(mag, e)), 0.0).astype(np.int64)
     return [Spikes(t[end - n:end].reshape(np.shape(z)), g[end - n:end].reshape(np.shape(z)),
                    ez, cfg.steps_per_cycle)
             for z, n, end, ez in zip(zs, sizes, ends, exps, strict=True)]

@@ -78,13 +78,17 @@ class SparseSpikingEngine(SpikingEngine):
         super().start(canvas, rng)
         self._synced = dict(self.state)
 
+    def set_rounding(self, rng: np.random.Generator) -> None:
+        super().set_rounding(rng)
+        self.tf.code.rounding = self.rounding
+
     def update_many(self, jobs: dict[str, tuple[Complex, Complex]]) -> dict[str, Complex]:
         # a state set outside the cleanups (restored by the network's hold or IMU gate) is
         # what the state neurons send next: re-encode it
         for name, (x, _) in jobs.items():
             if self._synced.get(name) is not x:
                 self._set_state(name, encode(np.asarray(x, np.complex128), self.scfg,
-                                             fire_threshold=0.0))
+                                             fire_threshold=0.0, rounding=self.rounding))
         out = super().update_many(jobs)
         self._synced.update(out)
         return out

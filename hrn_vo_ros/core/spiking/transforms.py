@@ -46,6 +46,7 @@ from hrn_vo_ros.core.spiking.butterfly import AxisDFT, exact_weights, WeightMap
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
     code_steps,
+    NEAREST,
     payload_exponent,
     phase_codes,
     rotation_constants,
@@ -60,7 +61,8 @@ class PhasorCode:
     """What a population of phasor neurons passes on: its values as one graded spike each.
 
     ``fire(z)`` returns ``g 2^e u[t]`` with ``t = round(arg z T / 2 pi) mod T``,
-    ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``B = cfg.transform_bits``, ``e`` from the
+    ``g = round(|z| / 2^e)`` in ``[0, 2^B - 1]`` (``rounding``, to the nearest unless the
+    engine sets a stochastic one; ``B = cfg.transform_bits``, ``e`` from the
     population's largest magnitude; ``B = 1``: unit payloads, the unit nearest the mean
     magnitude) and ``u[t]`` the phase a spike at step ``t`` has at the end of the receiving
     neuron's cycle (``e^{i 2 pi t / T}``; ``precision='loihi'``: ``rho^(T - t)``).
@@ -86,6 +88,7 @@ class PhasorCode:
         self.last_silent: NDArray[np.intp] | None = None   # flat indices of the silent neurons
         self.label = ''
         self.probe: Callable[[str, C64, C64], None] | None = None
+        self.rounding = NEAREST
 
     def fire(self, z: C64) -> C64:
         """The values the population's spikes carry (same shape as ``z``)."""
@@ -119,7 +122,7 @@ class PhasorCode:
                   else None)
         g = mag                                               # (in place: mag is not used again)
         g *= np.float32(2.0 ** -e)
-        np.rint(g, out=g)
+        self.rounding.inplace(g)
         if silent is not None:
             g[silent] = 0.0
         self.last_silent = np.flatnonzero(g == 0.0)
