@@ -15,9 +15,11 @@ from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
     encode,
+    NEAREST,
     phase_to_step,
     rf_cycle_float,
     rf_cycle_int,
+    Rounding,
     Spikes,
 )
 from hrn_vo_ros.core.spiking.synapses import (
@@ -175,6 +177,64 @@ def test_a_wide_neuron_does_not_set_the_payload_unit_of_all() -> None:
     # wide_bits not above payload_bits: one unit for all, as without
     same = encode(z, cfg, wide=np.array([0]), wide_bits=8)
     assert same.exp == plain.exp
+
+
+def test_stochastic_rounding_is_unbiased_where_the_nearest_holds_still() -> None:
+    """Unit 2^-1 (the largest, 100, sets it: 2^ceil(log2(100/255))): 0.2 is 0.4 of a unit, so
+    to the nearest it is silent in every cycle; rounded stochastically it fires with payload 1
+    in 40 % of the cycles (mean 0.4 units = 0.2) and never with another payload; 100 = 200
+    units exactly stays 200; a value at the top of the range never overflows it."""
+    z = np.array([100.0, 0.2, 3.3])
+    cfg = SpikingConfig(payload_bits=8)
+    assert list(encode(z, cfg).g) == [200, 0, 7]
+    rnd = Rounding(np.random.default_rng(4))
+    gs = np.array([encode(z, cfg, rounding=rnd).g for _ in range(4000)])
+    assert set(np.unique(gs[:, 0])) == {200} and set(np.unique(gs[:, 1])) == {0, 1}
+    assert set(np.unique(gs[:, 2])) == {6, 7}
+    # 4000 Bernoulli(0.4): std of the mean 0.0077; 3.3 = 6.6 units: 0.6 of them up
+    assert gs[:, 1].mean() == pytest.approx(0.4, abs=0.025)
+    assert gs[:, 2].mean() == pytest.approx(6.6, abs=0.025)
+    top = np.array([255.0 * 0.5, 254.99 * 0.5])          # 255 and 254.99 units of 2^-1
+    assert encode(top, cfg, rounding=rnd).exp == -1
+    assert all(encode(top, cfg, rounding=rnd).g.max() <= 255 for _ in range(200))
+    # the in-place form (the sparse transforms' float32 payloads) rounds the same way
+    x = np.full(4000, 2.25, np.float32)
+    Rounding(np.random.default_rng(5)).inplace(x)
+    assert set(np.unique(x)) == {2.0, 3.0} and x.mean() == pytest.approx(2.25, abs=0.025)
+    y = np.array([2.25, 2.5, 2.75], np.float32)
+    NEAREST.inplace(y)
+    assert list(y) == [2.0, 2.0, 3.0]                    # (half to even, as np.rint)
+    # the same generator state gives the same payloads
+    a = encode(z, cfg, rounding=Rounding(np.random.default_rng(9))).g
+    b = encode(z, cfg, rounding=Rounding(np.random.default_rng(9))).g
+    np.testing.assert_array_equal(a, b)
+
+
+def test_stochastic_rounding_reaches_every_population_and_repeats_with_the_seed() -> None:
+    """The engine hands the network's generator to the cleanups and the sparse transforms'
+    code; two networks of the same seed give the same estimates, another seed others."""
+    cfg = paper_config({})
+    sto = SpikingConfig(rounding='stochastic')
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    frames = [event_frame(scene, (0.4 * i, -0.3 * i, 0.004 * i, 0.0), rng) for i in range(12)]
+    runs = {}
+    for name, seed, scfg in (('a', 1, sto), ('b', 1, sto), ('c', 2, sto),
+                             ('nearest', 1, SpikingConfig())):
+        b = SpikingHRN(cfg, rng=np.random.default_rng(seed), spiking=scfg)
+        est = [b.step(f, i * 5_000_000) for i, f in enumerate(frames)]
+        eng = b._spiking_engine
+        stochastic = scfg.rounding == 'stochastic'
+        assert (eng.rounding.rng is not None) == stochastic
+        assert all(cl.rounding is eng.rounding for cl in eng.cleanups.values())
+        assert eng.tf.code.rounding is eng.rounding             # (the sparse form)
+        runs[name] = np.array([(e.h, e.v, e.r) for e in est])
+    np.testing.assert_array_equal(runs['a'], runs['b'])
+    assert not np.array_equal(runs['a'], runs['c'])
+    assert not np.array_equal(runs['a'], runs['nearest'])
+    # and they follow the same motion: 0.4 and -0.3 px per frame over 11 frames
+    for name in runs:
+        np.testing.assert_allclose(runs[name][-1, :2], [4.4, -3.3], atol=1.0)
 
 
 def test_state_shift_counts_each_neurons_largest_payload() -> None:
