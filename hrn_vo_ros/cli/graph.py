@@ -54,7 +54,12 @@ class NodeProcess:
 
     def tail(self, chars: int = 2000) -> str:
         """The end of its log."""
-        return self.log.read_text(errors='replace')[-chars:]
+        return _tail(self.log, chars)
+
+
+def _tail(log: Path, chars: int) -> str:
+    """The last ``chars`` characters of a node's log."""
+    return log.read_text(errors='replace')[-chars:]
 
 
 def ros_args(params_file: Path | None = None, params: dict[str, object] | None = None,
@@ -106,7 +111,7 @@ class Graph:
     def start(self, name: str, argv: Sequence[str]) -> NodeProcess:
         """Start ``argv`` (a module's ``-m`` path or an executable and its args)."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        log = self.log_dir / f'{name}.log'
+        log = self.log_path(name)
         with open(log, 'wb') as fh:
             proc = subprocess.Popen(list(argv), stdout=fh, stderr=subprocess.STDOUT,
                                     env=os.environ.copy())
@@ -141,8 +146,11 @@ class Graph:
 
     def failed_logs(self, codes: dict[str, int], chars: int = 3000) -> dict[str, str]:
         """The end of the log of every node whose exit code in ``codes`` is not 0."""
-        return {n: (self.log_dir / f'{n}.log').read_text(errors='replace')[-chars:]
-                for n, c in codes.items() if c != 0}
+        return {n: _tail(self.log_path(n), chars) for n, c in codes.items() if c != 0}
+
+    def log_path(self, name: str) -> Path:
+        """Where the node started as ``name`` writes its output."""
+        return self.log_dir / f'{name}.log'
 
 
 class Monitor:

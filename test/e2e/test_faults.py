@@ -155,7 +155,7 @@ def pipeline(ros: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[
     finally:
         codes = graph.stop(timeout=15.0)
         probe.node.destroy_node()
-        logs = {n: (graph.log_dir / f'{n}.log').read_text(errors='replace')
+        logs = {n: graph.log_path(n).read_text(errors='replace')
                 for n in codes}
     assert all(c == 0 for c in codes.values()), (codes, graph.failed_logs(codes))
     assert not [n for n, text in logs.items() if 'Traceback' in text], logs
