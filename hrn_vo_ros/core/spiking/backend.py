@@ -93,7 +93,7 @@ class SpikingEngine(FastEngine):
                               p_needs_max=same and ccfg.nonlinearity == 'exp')
             for k in self.books}
         self.spikes: dict[str, Spikes] = {}
-        self.rounding = NEAREST                 # set_rounding (start) gives the configured one
+        self.rounding = NEAREST                 # set_rounding gives the configured one
         self.sent: dict[str, Spikes] = {}
         self.pixels = 0
         self.account = IterationAccount()
@@ -105,14 +105,14 @@ class SpikingEngine(FastEngine):
         return np.asarray(super().encode(canvas), np.complex128)   # general form: double
 
     def start(self, canvas: Floats, rng: np.random.Generator) -> None:
-        self.set_rounding(rng)
         super().start(canvas, rng)
         for k, x in self.state.items():
             self._set_state(k, encode(x, self.scfg, fire_threshold=0.0, rounding=self.rounding))
 
     def set_rounding(self, rng: np.random.Generator) -> None:
         """Every population's payload rounding (``SpikingConfig.rounding``; stochastic: from
-        ``rng``, the network's generator)."""
+        ``rng``, the network's generator), set once when the network builds the engine, so
+        that its first frame is coded like the others."""
         self.rounding = Rounding(rng if self.scfg.rounding == 'stochastic' else None)
         for cl in self.cleanups.values():
             cl.rounding = self.rounding
@@ -244,6 +244,7 @@ class SpikingHRN(HRN):
         else:
             self._spiking_engine = SpikingEngine(cfg, g, self.spiking)
             self.transform = 'dense'
+        self._spiking_engine.set_rounding(self.rng)     # (HRN sets rng before the engine)
         return self._spiking_engine
 
     def step(self, image: NDArray[Any], t_ns: int, *,
