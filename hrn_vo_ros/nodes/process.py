@@ -9,8 +9,6 @@ import contextlib
 import faulthandler
 import gc
 import signal
-import threading
-import time
 from typing import TypeVar
 
 import rclpy
@@ -18,55 +16,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 from hrn_vo_ros.errors import ConfigError, HrnVoError
-
-#: Seconds a node process may take to end once it is stopping (its context shut down by a
-#: signal or externally, or its clean-up begun); then every thread's stack goes to stderr and
-#: the process exits 1. ``ros2 launch`` kills a node 10 s after its SIGINT anyway (SIGTERM
-#: after 5 s, SIGKILL 5 s later): this limit makes a stuck stop end as fast and say where.
-STOP_LIMIT_S = 10.0
-#: How often the watchdog thread looks at the context (seconds).
-WATCH_PERIOD_S = 0.2
+from hrn_vo_ros.nodes.stop_limit import STOP_LIMIT_S, StopLimit
 
 N = TypeVar('N', bound=Node)
-
-
-class _StopLimit:
-    """The time limit of a stopping process: armed when its clean-up begins, or by a daemon
-    thread once the context is shut down; disarmed when :func:`run` returns.
-
-    A stop signal reaches rclpy's handler, which shuts the context down from its own thread and
-    wakes the executor; should the main thread never get back to Python (stuck in a callback,
-    or in rclpy's C code with the stop signals blocked), nothing would end the process. The
-    limit is :func:`faulthandler.dump_traceback_later`, which needs neither the GIL nor the
-    main thread to fire. It is process-wide: disarmed when ``run`` returns, it cannot end a
-    caller that goes on (a test running a node in its own process).
-    """
-
-    def __init__(self, limit_s: float) -> None:
-        self.limit_s = limit_s
-        self._lock = threading.Lock()
-        self._done = False
-
-    def watch(self) -> None:
-        """Start the thread that arms the limit once the context is no longer ok."""
-        threading.Thread(target=self._watch, name='hrn_vo_ros_stop_limit', daemon=True).start()
-
-    def _watch(self) -> None:
-        while not self._done and rclpy.ok():
-            time.sleep(WATCH_PERIOD_S)
-        self.arm()
-
-    def arm(self) -> None:
-        """From now, ``limit_s`` to the end of :func:`run` (again from now if armed)."""
-        with self._lock:
-            if not self._done:
-                faulthandler.dump_traceback_later(self.limit_s, exit=True)
-
-    def disarm(self) -> None:
-        """For good: ``run`` is returning."""
-        with self._lock:
-            self._done = True
-            faulthandler.cancel_dump_traceback_later()
 
 
 def _ignore_stop_signals() -> None:
@@ -120,7 +72,7 @@ def _shielded(steps: list[Callable[[], object]]) -> None:
         steps.pop(0)
 
 
-def _shut_down(node: Node | None, limit: _StopLimit | None = None) -> None:
+def _shut_down(node: Node | None, limit: StopLimit | None = None) -> None:
     """Arm the stop ``limit``, destroy the node and shut rclpy down, ignoring further stop
     signals meanwhile."""
     steps: list[Callable[[], object]] = [] if limit is None else [limit.arm]
@@ -186,7 +138,7 @@ def _entry(make_node: Callable[[], N], task: Callable[[N], int], args: list[str]
     node: N | None = None
     code = 0
     initialised = False
-    limit = _StopLimit(stop_limit_s)
+    limit = StopLimit(stop_limit_s)
     faulthandler.enable()    # a crash in C (rclpy, the DDS) prints every thread's stack first
     default_stop_signals()   # drop the import-time exit (hrn_vo_ros.nodes) before rclpy's own
     try:
