@@ -7,10 +7,12 @@ Prints, measured in this run:
    difference; then the medians over seeds against the acceptance thresholds (1.0 deg, 0.5 px,
    0.5 deg);
 2. (``--sweep``) on the first seed: steps per cycle T x weight bits (and float-spiking rows,
-   which have the same spikes without quantisation) with accuracy vs the float backend and the
-   per-iteration spikes, synaptic operations, Loihi energy/latency estimates, next to the float
-   HRN's CPU operation counts (fast and dense path); ``--write-docs`` puts the table into
-   docs/spiking.md;
+   which have the same spikes without quantisation), then ablations at T = 32 with 8-bit
+   weights (the dense reference, radix 2, delay synapses, ReLU threshold, 4-bit payloads,
+   binary spikes, 12-bit transform payloads, stochastic rounding) with accuracy vs the float
+   backend and the per-iteration spikes, synaptic operations, Loihi energy/latency estimates,
+   next to the float HRN's CPU operation counts (fast and dense path); ``--write-docs`` puts
+   the table into docs/spiking.md;
 3. the frames/s of the float backend and of the spiking emulation (run back to back);
 4. (``--layers``) on the first seed (up to 200 frames): per population of the sparse
    transforms, the relative rms error of its graded payloads against 24-bit ones and the share
@@ -298,7 +300,9 @@ def sweep(cfg: ResonatorConfig, first: tuple[np.ndarray, np.ndarray, Any, np.nda
                  ('8-bit, ReLU threshold p', SpikingConfig(nonlinearity='relu')),
                  ('8-bit, 4-bit payloads', SpikingConfig(payload_bits=4,
                                                          transform_payload_bits=4)),
-                 ('8-bit, binary spikes', SpikingConfig(payload_bits=1))]
+                 ('8-bit, binary spikes', SpikingConfig(payload_bits=1)),
+                 ('8-bit, 12-bit transform payloads', SpikingConfig(transform_payload_bits=12)),
+                 ('8-bit, stochastic rounding', SpikingConfig(rounding='stochastic'))]
     for label, sc in variants:
         es, dts, acc = run(cfg, BackendConfig('spiking', sc), t, imgs, seed)
         droll, dh, dv = differences(es, ef)

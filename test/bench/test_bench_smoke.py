@@ -45,6 +45,12 @@ CASES = {
                                          '--layers'),
                     ('seed   1: 60 frames', 'frames/s (median per-frame time)',
                      'payload rounding per population', "Λ': fft_x stages")),
+    # the precision sweep's every row (T x weight bits, the ablations) on 20 frames
+    'spiking_sweep': Case('bench_spiking.py', ('--seeds', '1', '--seconds', '1', '--frames',
+                                               '20', '--sweep'),
+                          ('| 63 | 8-bit |', '| 32 | 8-bit, dense reference |',
+                           '| 32 | 8-bit, 12-bit transform payloads |',
+                           '| 32 | 8-bit, stochastic rounding |'), timeout=240.0),
     # 2.5 s: the evaluation's lag search needs more than 2 s of overlap
     'accuracy': Case('bench_accuracy.py', ('--kinds', 'rotation', '--seeds', '1', '--seconds',
                                            '2.5', '--work', '{work}'),
@@ -93,7 +99,8 @@ CASES = {
                   'per-loop accuracy', 'loop   2:', 'targets: RSS growth', 'soak done'),
                  timeout=240.0),
 }
-SLOW = {'accuracy', 'blackout', 'latency', 'robustness', 'robustness_preset', 'soak'}
+SLOW = {'accuracy', 'blackout', 'latency', 'robustness', 'robustness_preset', 'soak',
+        'spiking_sweep'}
 ROS = {'latency', 'soak'}
 
 
