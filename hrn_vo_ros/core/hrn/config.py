@@ -283,6 +283,14 @@ class TrackingConfig:
                                   'itself, at the pose the output reports (a short first packet '
                                   'at the start of the motion is a thin map; 0: off)',
                                   lo=0.0, hi=1000.0)
+    bootstrap_structure: float = param(1.5, 'while the map is still the frame it started '
+                                       'from (map learning blocked, map.block_iterations) and '
+                                       'that frame was as scattered as noise (its neighbour '
+                                       'ratio, core/events/content.py, below this), the first '
+                                       'frame at or above it starts the map anew from itself, '
+                                       'at the pose the output reports (a first packet of noise '
+                                       'and hot pixels before the scene shows; 0: off)',
+                                       lo=0.0, hi=100.0)
     bootstrap_lost: bool = param(True, 'a track lost while its map has never learned (still '
                                  'the frame it started from) starts a new map from the current '
                                  'frame, at the pose the output holds, as the bootstrap does: the '
@@ -430,7 +438,8 @@ PAPER_NETWORK: Mapping[str, Scalar] = MappingProxyType({
     'imu.max_correction_deg_s': 0.0, 'imu.max_correction_fraction': 0.0,
     'imu.bias_memory_s': 0.0,
     'tracking.map_quality': 0.45, 'tracking.gyro_poor': False,
-    'tracking.bootstrap_frames': 12, 'tracking.remap_s': 0.0,
+    'tracking.bootstrap_frames': 12, 'tracking.bootstrap_structure': 0.0,
+    'tracking.remap_s': 0.0,
 })
 
 

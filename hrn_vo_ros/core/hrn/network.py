@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hrn_vo_ros.core.events.content import neighbour_ratio
 from hrn_vo_ros.core.events.frames import check_event_frame
 from hrn_vo_ros.core.hrn import fft as hfft
 from hrn_vo_ros.core.hrn.config import geometry, ResonatorConfig
@@ -138,6 +139,9 @@ class HRN(Prediction):
         self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
         self._map_on = 0                # on pixels of the frame the map started from
+        self._arrived: NDArray[Any] | None = None    # this frame as it arrived
+        self._structure: float | None = None    # its neighbour ratio, once computed
+        self._map_structure = math.nan  # that of the frame the map started from
         self._map_learned = False       # the map has been updated since it started
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
@@ -242,6 +246,7 @@ class HRN(Prediction):
         if prepared is None:
             return self._repeat(t_ns)
         img, n_on, n_in = prepared
+        self._arrived, self._structure = image, None    # (bootstrap_structure, on demand)
         canvas = self._place(img)
         eng = self._engine
         first = not self._started
@@ -280,6 +285,7 @@ class HRN(Prediction):
         self._point = point
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
                                                  or self._thin_map(n_in)
+                                                 or self._noise_map()
                                                  or self._lost_unlearned(carried)
                                                  or (self.tracker.remap_due(t_ns) and gyro)):
             return self._restart(canvas, t_ns, n_in, spread, peak, sims, carried=carried)
@@ -398,6 +404,22 @@ class HRN(Prediction):
         return (fill > 0.0 and self.iteration - self._map_iteration <= map_block(c)
                 and n_in > fill * self._map_on)
 
+    def _noise_map(self) -> bool:
+        """Whether the map is still its first frame (learning blocked), that frame was as
+        scattered as noise (neighbour ratio below ``tracking.bootstrap_structure``) and this
+        frame is not."""
+        c, least = self.cfg, self.cfg.tracking.bootstrap_structure
+        return (least > 0.0 and self.iteration - self._map_iteration <= map_block(c)
+                and self._map_structure < least <= self._frame_structure())
+
+    def _frame_structure(self) -> float:
+        """This frame's neighbour ratio as it arrived (before the hot-pixel mask and the sphere
+        warp), computed once per frame where it is needed."""
+        if self._structure is None:
+            assert self._arrived is not None        # set by step() before any use
+            self._structure = neighbour_ratio(self._arrived)
+        return self._structure
+
     def _lost_unlearned(self, carried: bool) -> bool:
         """Whether the track is lost while its map never learned (``tracking.bootstrap_lost``):
         the map is the one frame it started from, and the global search can only find that.
@@ -426,6 +448,8 @@ class HRN(Prediction):
         start, and what the map's update block (``map_block``) and ``_thin_map`` count from."""
         self._engine.start(canvas, self.rng)
         self._map_on = n_in
+        self._map_structure = (self._frame_structure()
+                               if self.cfg.tracking.bootstrap_structure > 0.0 else math.nan)
         self._map_learned = False
         self._map_iteration = self.iteration
 

@@ -6,6 +6,7 @@ from hrn_synth import event_frame, random_scene, trajectory
 import numpy as np
 import pytest
 
+from hrn_vo_ros.core.events.content import neighbour_ratio
 from hrn_vo_ros.core.hrn.config import paper_config, TrackingConfig
 from hrn_vo_ros.core.hrn.network import HRN
 from hrn_vo_ros.core.hrn.tracking import DENSE_RUN
@@ -675,6 +676,56 @@ def test_a_thin_first_map_is_replaced_by_a_fuller_frame() -> None:
     ref = make({'tracking': {'bootstrap_fill': 2.0}})
     run(ref, scene, poses, np.random.default_rng(1))
     assert ref.tracker.restarts == 0
+
+
+@pytest.mark.parametrize('least', [1.5, 0.0])
+def test_a_first_map_of_noise_is_replaced_by_the_first_frame_with_structure(
+        least: float) -> None:
+    """A first frame of scattered noise (no scene in view yet; its neighbour ratio is about 1)
+    makes a map with nothing to track. With tracking.bootstrap_structure 1.5 the first frame of
+    the scene (edges: ratio about 10) starts the map anew, once, and the output follows the
+    motion from there; without it the noise map stays, and its overlap with the scene is too
+    poor for the map ever to learn. The other bootstraps are off, so that this one acts
+    alone."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    noise = (rng.random((72, 96)) < 0.1).astype(np.uint8)
+    poses = trajectory(150, amp_xy=6.0, amp_roll=0.25, period=150.0)
+    frames = [event_frame(scene, tuple(p), rng) for p in poses]
+    assert neighbour_ratio(noise) < 1.2 and min(neighbour_ratio(f) for f in frames) > 3.0
+    hrn = make({'tracking': {'bootstrap_structure': least, 'bootstrap_frames': 0,
+                             'bootstrap_fill': 0.0, 'bootstrap_lost': False}})
+    est = [hrn.step(noise, 0)]
+    restarts = []
+    for i, f in enumerate(frames, start=1):
+        est.append(hrn.step(f, i * 5_000_000))
+        restarts.append(hrn.tracker.restarts)
+    tail = est[-60:]
+    if not least:
+        assert hrn.tracker.restarts == 0
+        assert sum(e.state == 'tracking' for e in tail) < 10
+        return
+    assert restarts[0] == 1 and restarts[-1] == 1      # at the scene's first frame, once
+    assert all(e.state == 'tracking' for e in tail)
+    # the output is the pose relative to the scene's first frame (the new map's), at pose 0
+    err = np.median(np.abs(np.array([(e.h, e.v, e.r) for e in tail])
+                           - (poses[-60:, :3] - poses[0, :3])), axis=0)
+    assert np.all(err < (0.2, 0.15, 0.005)), err     # measured 0.11, 0.07 px, 0.0027 rad
+
+
+def test_a_first_map_with_structure_or_noise_alone_never_restarts() -> None:
+    """The structure bootstrap needs both sides of the threshold: noise after noise (a still,
+    noisy sensor) and a scene from its first frame leave the map alone."""
+    rng = np.random.default_rng(3)
+    over = {'tracking': {'bootstrap_structure': 1.5, 'bootstrap_frames': 0,
+                         'bootstrap_fill': 0.0, 'bootstrap_lost': False}}
+    still = make(over)
+    for i in range(15):
+        still.step((rng.random((72, 96)) < 0.1).astype(np.uint8), i * 5_000_000)
+    assert still.tracker.restarts == 0
+    scene = make(over)
+    run(scene, random_scene(rng), clean(40), rng)
+    assert scene.tracker.restarts == 0
 
 
 def test_a_new_map_continues_the_output_from_the_pose_it_starts_at() -> None:
