@@ -139,9 +139,7 @@ class HRN(Prediction):
         self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
         self._map_on = 0                # on pixels of the frame the map started from
-        self._arrived: NDArray[Any] | None = None    # this frame as it arrived
-        self._structure: float | None = None    # its neighbour ratio, once computed
-        self._map_structure = math.nan  # that of the frame the map started from
+        self._map_structure = math.nan  # neighbour ratio of the frame the map started from
         self._map_learned = False       # the map has been updated since it started
         self.innovation_deg = 0.0       # last readout vs gyro prediction (imu.gate_deg on)
         self.rejected_frames = 0        # frames rejected by imu.gate_deg
@@ -246,12 +244,11 @@ class HRN(Prediction):
         if prepared is None:
             return self._repeat(t_ns)
         img, n_on, n_in = prepared
-        self._arrived, self._structure = image, None    # (bootstrap_structure, on demand)
         canvas = self._place(img)
         eng = self._engine
         first = not self._started
         if first:
-            self._start_map(canvas, n_in)
+            self._start_map(canvas, n_in, image)
             self._started = True
         dt_s = 0.0 if self._t_prev is None else max(t_ns - self._t_prev, 0) * 1e-9
         self._t_prev = t_ns
@@ -275,8 +272,7 @@ class HRN(Prediction):
             gyro_deg = math.degrees(float(np.linalg.norm(gyro_delta)))
             sims, point, rejected = self._gate_imu(point, predicted, held, sims, dt_s,
                                                    gyro_deg)
-        learn = (c.map.learn and self.iteration - self._map_iteration > map_block(c)
-                 and not rejected)
+        learn = c.map.learn and not self._map_blocked() and not rejected
         target: Any = None
         if c.tracking.enabled and not first:
             point, spread, peak, sims, target = self._assess(
@@ -285,10 +281,11 @@ class HRN(Prediction):
         self._point = point
         if c.tracking.enabled and not first and (self.tracker.bootstrap_due()
                                                  or self._thin_map(n_in)
-                                                 or self._noise_map()
+                                                 or self._noise_map(image)
                                                  or self._lost_unlearned(carried)
                                                  or (self.tracker.remap_due(t_ns) and gyro)):
-            return self._restart(canvas, t_ns, n_in, spread, peak, sims, carried=carried)
+            return self._restart(canvas, t_ns, n_in, spread, peak, sims, carried=carried,
+                                 frame=image)
         self._follow(point, n_on, dt_s)
         updated = False
         if learn and (not c.tracking.enabled or (self.tracker.state != 'lost'
@@ -400,25 +397,21 @@ class HRN(Prediction):
         """Whether the map is still its first frame (learning blocked) and this frame has more
         than ``tracking.bootstrap_fill`` times its on pixels (both counted before the sphere
         warp)."""
-        c, fill = self.cfg, self.cfg.tracking.bootstrap_fill
-        return (fill > 0.0 and self.iteration - self._map_iteration <= map_block(c)
-                and n_in > fill * self._map_on)
+        fill = self.cfg.tracking.bootstrap_fill
+        return fill > 0.0 and self._map_blocked() and n_in > fill * self._map_on
 
-    def _noise_map(self) -> bool:
+    def _noise_map(self, frame: NDArray[Any]) -> bool:
         """Whether the map is still its first frame (learning blocked), that frame was as
         scattered as noise (neighbour ratio below ``tracking.bootstrap_structure``) and this
         frame is not."""
-        c, least = self.cfg, self.cfg.tracking.bootstrap_structure
-        return (least > 0.0 and self.iteration - self._map_iteration <= map_block(c)
-                and self._map_structure < least <= self._frame_structure())
+        least = self.cfg.tracking.bootstrap_structure
+        return (least > 0.0 and self._map_blocked() and self._map_structure < least
+                and neighbour_ratio(frame) >= least)
 
-    def _frame_structure(self) -> float:
-        """This frame's neighbour ratio as it arrived (before the hot-pixel mask and the sphere
-        warp), computed once per frame where it is needed."""
-        if self._structure is None:
-            assert self._arrived is not None        # set by step() before any use
-            self._structure = neighbour_ratio(self._arrived)
-        return self._structure
+    def _map_blocked(self) -> bool:
+        """Whether the map is still the frame it started from: its updates are blocked for
+        ``map_block`` iterations from its start."""
+        return self.iteration - self._map_iteration <= map_block(self.cfg)
 
     def _lost_unlearned(self, carried: bool) -> bool:
         """Whether the track is lost while its map never learned (``tracking.bootstrap_lost``):
@@ -429,26 +422,30 @@ class HRN(Prediction):
                 and not self._map_learned and self.tracker.state == 'lost')
 
     def _restart(self, canvas: Floats, t_ns: int, n_in: int, spread: dict[str, float],
-                 peak: dict[str, float], sims: dict[str, Real], *, carried: bool) -> Estimate:
-        """Bootstrap (``tracking.bootstrap_frames``, ``bootstrap_fill``, ``bootstrap_lost``):
+                 peak: dict[str, float], sims: dict[str, Real], *, carried: bool,
+                 frame: NDArray[Any]) -> Estimate:
+        """Bootstrap (``tracking.bootstrap_frames``, ``bootstrap_fill``,
+        ``bootstrap_structure``, ``bootstrap_lost``):
         poor frames before the map was ever tracked say that the map's frame had nothing to
         track (noise before the camera moved, a blur), a frame with many more pixels than the
         map's says the map is thin, and a loss before the map ever learned leaves nothing to
         search but its first frame: this frame starts a new map, at the pose the output reports
-        now, and the track must establish itself on it again."""
+        now, and the track must establish itself on it again (``frame``: this frame as it
+        arrived, ``canvas``: as the network placed it)."""
         out = self._emit(t_ns, self._point, spread, peak, sims, False, carried=carried)
         self._pose.restart()
-        self._start_map(canvas, n_in)
+        self._start_map(canvas, n_in, frame)
         self._new_origin()
         self.tracker.restart()
         return out
 
-    def _start_map(self, canvas: Floats, n_in: int) -> None:
-        """A map from this frame (``n_in`` on pixels before the sphere warp): the engine's
-        start, and what the map's update block (``map_block``) and ``_thin_map`` count from."""
+    def _start_map(self, canvas: Floats, n_in: int, frame: NDArray[Any]) -> None:
+        """A map from this frame (``n_in`` on pixels before the sphere warp; ``frame`` as it
+        arrived, before the hot-pixel mask and the warp): the engine's start, and what the
+        map's update block (``map_block``), ``_thin_map`` and ``_noise_map`` count from."""
         self._engine.start(canvas, self.rng)
         self._map_on = n_in
-        self._map_structure = (self._frame_structure()
+        self._map_structure = (neighbour_ratio(frame)
                                if self.cfg.tracking.bootstrap_structure > 0.0 else math.nan)
         self._map_learned = False
         self._map_iteration = self.iteration

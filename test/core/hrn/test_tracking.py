@@ -745,7 +745,7 @@ def test_a_new_map_continues_the_output_from_the_pose_it_starts_at() -> None:
     hrn.tracker.bad_run = hrn.cfg.tracking.bootstrap_frames
     hrn.tracker.state = 'lost'
     b.append(hrn._restart(hrn._place(frames[k]), k, int(frames[k].sum()), {}, {}, {},
-                          carried=False))
+                          carried=False, frame=frames[k]))
     b += [hrn.step(f, i) for i, f in enumerate(frames[k + 1:], start=k + 1)]
     assert hrn.tracker.restarts == 1
     diff = np.abs(np.array([(e.h, e.v, e.r) for e in b[k + 20:]])
