@@ -591,7 +591,7 @@ def test_tracking_gyro_poor_keeps_poor_frames_at_the_prediction(on: bool) -> Non
 
 
 @pytest.mark.parametrize('bootstrap', [1, 0])
-def test_a_map_started_on_noise_is_replaced_by_the_first_frame_with_structure(
+def test_poor_frames_before_the_first_track_start_the_map_anew_until_the_scene_tracks(
         bootstrap: int) -> None:
     """A still camera's first frames are noise (no moving edge makes events): a map started
     on them has nothing to track. With tracking.bootstrap_frames the first frames of the scene
