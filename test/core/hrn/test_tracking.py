@@ -678,6 +678,12 @@ def test_a_thin_first_map_is_replaced_by_a_fuller_frame() -> None:
     assert ref.tracker.restarts == 0
 
 
+def structure_bootstrap_alone(least: float) -> dict[str, dict[str, object]]:
+    """Overrides with the structure bootstrap at ``least`` and the other bootstraps off."""
+    return {'tracking': {'bootstrap_structure': least, 'bootstrap_frames': 0,
+                         'bootstrap_fill': 0.0, 'bootstrap_lost': False}}
+
+
 @pytest.mark.parametrize('least', [1.5, 0.0])
 def test_a_first_map_of_noise_is_replaced_by_the_first_frame_with_structure(
         least: float) -> None:
@@ -693,8 +699,7 @@ def test_a_first_map_of_noise_is_replaced_by_the_first_frame_with_structure(
     poses = trajectory(150, amp_xy=6.0, amp_roll=0.25, period=150.0)
     frames = [event_frame(scene, tuple(p), rng) for p in poses]
     assert neighbour_ratio(noise) < 1.2 and min(neighbour_ratio(f) for f in frames) > 3.0
-    hrn = make({'tracking': {'bootstrap_structure': least, 'bootstrap_frames': 0,
-                             'bootstrap_fill': 0.0, 'bootstrap_lost': False}})
+    hrn = make(structure_bootstrap_alone(least))
     est = [hrn.step(noise, 0)]
     restarts = []
     for i, f in enumerate(frames, start=1):
@@ -717,8 +722,7 @@ def test_a_first_map_with_structure_or_noise_alone_never_restarts() -> None:
     """The structure bootstrap needs both sides of the threshold: noise after noise (a still,
     noisy sensor) and a scene from its first frame leave the map alone."""
     rng = np.random.default_rng(3)
-    over = {'tracking': {'bootstrap_structure': 1.5, 'bootstrap_frames': 0,
-                         'bootstrap_fill': 0.0, 'bootstrap_lost': False}}
+    over = structure_bootstrap_alone(1.5)
     still = make(over)
     for i in range(15):
         still.step((rng.random((72, 96)) < 0.1).astype(np.uint8), i * 5_000_000)
