@@ -805,11 +805,20 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
     """Per kind, the per-sequence median errors of every method (strip + box plot) and, below,
     each draw's median error against its scene event rate (:func:`scene_rate`) and against
     its motion per frame (:func:`motion_of`; lost draws as crosses, unevaluated ones on the top
-    edge; rows without the figure, from older CSVs, are left out of that panel)."""
+    edge; rows without the figure, from older CSVs, are left out of that panel); then, one
+    row per method, where its draws lie in scene rate and motion per frame and which of them
+    it tracks (:func:`_verdict_map`)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(3, len(kinds), figsize=(4.5 * len(kinds), 11.0), squeeze=False)
+    fig, axes = plt.subplots(3 + len(methods), len(kinds),
+                             figsize=(4.5 * len(kinds), 11.0 + 3.4 * len(methods)),
+                             squeeze=False)
+    for row, method in zip(axes[3:], methods, strict=True):
+        for ax, kind in zip(row, kinds, strict=True):
+            _verdict_map(ax, [r for r in rows if r.kind == kind and r.method == method],
+                         kind, method)
+    axes = axes[:3]
     panels = ((scene_rate, 'log', lambda deg: 'scene events/s (noise and hot pixels removed)'),
               (motion_of, 'log', lambda deg: 'camera turn per frame, 95th pct (deg)'
                if deg else 'camera travel per frame, 95th pct (cm)'))
@@ -849,6 +858,27 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
+
+
+def _verdict_map(ax: Any, rows: list[Row], kind: str, method: str) -> None:
+    """One method's draws of one kind at their scene event rate (x) and motion per frame (y):
+    tracked as dots, lost as crosses (rows without either figure are left out)."""
+    pts = [(scene_rate(r), motion_of(r), is_lost(r)) for r in rows]
+    pts = [p for p in pts if math.isfinite(p[0]) and p[0] > 0 and math.isfinite(p[1])
+           and p[1] > 0]
+    for lost, mark, colour, name in ((False, 'o', 'tab:green', 'tracked'),
+                                     (True, 'x', 'tab:red', 'lost')):
+        xy = np.array([(x, y) for x, y, lo in pts if lo == lost]).reshape(-1, 2)
+        ax.plot(xy[:, 0], xy[:, 1], mark, ms=4, alpha=0.75, color=colour,
+                label=f'{name} {len(xy)}')
+    ax.set_xscale('log')
+    ax.set_yscale('log')
+    ax.set_xlabel('scene events/s (noise and hot pixels removed)')
+    ax.set_ylabel('camera turn per frame, 95th pct (deg)' if UNIT[kind] == 'deg'
+                  else 'camera travel per frame, 95th pct (cm)')
+    ax.set_title(f'{kind}, {method}: tracked {sum(not lo for _, _, lo in pts)}/{len(pts)}',
+                 fontsize=9)
+    ax.legend(fontsize=7)
 
 
 def _sensor_arg(text: str) -> tuple[int, int]:

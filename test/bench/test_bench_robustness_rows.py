@@ -198,3 +198,26 @@ def test_paired_runs_are_compared_draw_by_draw_on_the_draws_all_have(
         'the same draws']
     assert robustness.main(['--paired']) == 2
     assert '--rows' in capsys.readouterr().err
+
+
+def test_the_verdict_map_places_each_draw_at_its_scene_rate_and_motion() -> None:
+    """One point per draw with both figures, at (events/s x (1 - junk), turn per frame),
+    tracked as dots and lost ones (a loss or a median beyond 10 deg) as crosses."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    def row(seed: int, rate: float, junk: float, deg: float, err: float,
+            lost: bool = False) -> object:
+        return robustness.Row('rotation', seed, 'hrn', 10.0, rate, 100.0, err, lost, 0.0, 0,
+                              0, 0, '', 1.0, '', 'draw', junk=junk, frame_deg=deg)
+
+    rows = [row(1, 1e5, 0.5, 2.0, 0.4), row(2, 4e3, 0.0, 8.0, 0.3, lost=True),
+            row(3, 2e4, 0.75, 1.0, 12.0), row(4, 1e5, math.nan, 1.0, 0.2)]   # 4: no junk
+    fig, ax = plt.subplots()
+    robustness._verdict_map(ax, rows, 'rotation', 'hrn')
+    dots, crosses = ax.get_lines()
+    assert list(zip(dots.get_xdata(), dots.get_ydata())) == [(5e4, 2.0)]
+    assert list(zip(crosses.get_xdata(), crosses.get_ydata())) == [(4e3, 8.0), (5e3, 1.0)]
+    assert ax.get_title() == 'rotation, hrn: tracked 1/3'
+    plt.close(fig)
