@@ -217,7 +217,8 @@ def test_the_verdict_map_places_each_draw_at_its_scene_rate_and_motion() -> None
     fig, ax = plt.subplots()
     robustness._verdict_map(ax, rows, 'rotation', 'hrn')
     dots, crosses = ax.get_lines()
-    assert list(zip(dots.get_xdata(), dots.get_ydata())) == [(5e4, 2.0)]
-    assert list(zip(crosses.get_xdata(), crosses.get_ydata())) == [(4e3, 8.0), (5e3, 1.0)]
+    assert list(zip(dots.get_xdata(), dots.get_ydata(), strict=True)) == [(5e4, 2.0)]
+    assert list(zip(crosses.get_xdata(), crosses.get_ydata(), strict=True)) == [
+        (4e3, 8.0), (5e3, 1.0)]
     assert ax.get_title() == 'rotation, hrn: tracked 1/3'
     plt.close(fig)
