@@ -801,6 +801,16 @@ def paired(runs: list[tuple[str, list[Row]]], kinds: list[str]) -> list[str]:
     return lines
 
 
+#: Axis label of :func:`scene_rate` in the plots.
+SCENE_RATE_LABEL = 'scene events/s (noise and hot pixels removed)'
+
+
+def motion_label(deg: bool) -> str:
+    """Axis label of :func:`motion_of` in the plots: the turn (deg) or the travel (cm)."""
+    return ('camera turn per frame, 95th pct (deg)' if deg
+            else 'camera travel per frame, 95th pct (cm)')
+
+
 def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> None:
     """Per kind, the per-sequence median errors of every method (strip + box plot) and, below,
     each draw's median error against its scene event rate (:func:`scene_rate`) and against
@@ -819,9 +829,7 @@ def plot(rows: list[Row], kinds: list[str], methods: list[str], path: Path) -> N
             _verdict_map(ax, [r for r in rows if r.kind == kind and r.method == method],
                          kind, method)
     axes = axes[:3]
-    panels = ((scene_rate, 'log', lambda deg: 'scene events/s (noise and hot pixels removed)'),
-              (motion_of, 'log', lambda deg: 'camera turn per frame, 95th pct (deg)'
-               if deg else 'camera travel per frame, 95th pct (cm)'))
+    panels = ((scene_rate, 'log', lambda deg: SCENE_RATE_LABEL), (motion_of, 'log', motion_label))
     for (box, *scatters), kind in zip(axes.T, kinds, strict=True):
         deg = UNIT[kind] == 'deg'
         scale = 1.0 if deg else 100.0                     # plotted in deg or cm
@@ -873,9 +881,8 @@ def _verdict_map(ax: Any, rows: list[Row], kind: str, method: str) -> None:
                 label=f'{name} {len(xy)}')
     ax.set_xscale('log')
     ax.set_yscale('log')
-    ax.set_xlabel('scene events/s (noise and hot pixels removed)')
-    ax.set_ylabel('camera turn per frame, 95th pct (deg)' if UNIT[kind] == 'deg'
-                  else 'camera travel per frame, 95th pct (cm)')
+    ax.set_xlabel(SCENE_RATE_LABEL)
+    ax.set_ylabel(motion_label(UNIT[kind] == 'deg'))
     ax.set_title(f'{kind}, {method}: tracked {sum(not lo for _, _, lo in pts)}/{len(pts)}',
                  fontsize=9)
     ax.legend(fontsize=7)
