@@ -162,6 +162,11 @@ class ImuConfig:
                                   '(-1: map.block_iterations): the gyro carries the first '
                                   'frames, so its map can wait for settled states longer',
                                   lo=-1, hi=10_000_000)
+    block_s: float = param(0.5, 'the map update block while the IMU prediction is on ends '
+                           'at the latest this many seconds after the map started (0: '
+                           'iterations only): at the 10 Hz of a slow scene, 100 '
+                           'iterations would keep its first frame as the map for 5 s',
+                           lo=0.0, hi=1.0e5)
     gate_deg: float = param(5.0, 'innovation gate (0: off): a frame whose readout differs from '
                             'the gyro prediction by more than this angle (roll, or pan/tilt '
                             'through focal_px) is rejected: the states keep the prediction '
@@ -434,7 +439,8 @@ PAPER_NETWORK: Mapping[str, Scalar] = MappingProxyType({
     'cleanup.predict_velocity': 0.0,
     'map.mu1': 0.9, 'map.mu2': 0.01, 'map.block_iterations': 100,
     'readout.refine': False,
-    'imu.gamma': 0.0, 'imu.mu1': 0.0, 'imu.block_iterations': -1, 'imu.gate_deg': 0.0,
+    'imu.gamma': 0.0, 'imu.mu1': 0.0, 'imu.block_iterations': -1, 'imu.block_s': 0.0,
+    'imu.gate_deg': 0.0,
     'imu.max_correction_deg_s': 0.0, 'imu.max_correction_fraction': 0.0,
     'imu.bias_memory_s': 0.0,
     'tracking.map_quality': 0.45, 'tracking.gyro_poor': False,

@@ -56,6 +56,7 @@ from hrn_vo_ros.core.hrn.shared import (
     Complex,
     Floats,
     map_block,
+    map_block_ns,
     map_mu1,
     population_readout,
     Real,
@@ -138,6 +139,8 @@ class HRN(Prediction):
         self._last: Estimate | None = None
         self._pose.reset()              # the reported pose: unwrap, hold, the map's origin
         self._map_iteration = 0         # the iteration at which the map started
+        self._map_t_ns = 0              # ... and its frame's time (ns)
+        self._t_ns = 0                  # the time of the frame in process (ns)
         self._map_on = 0                # on pixels of the frame the map started from
         self._map_structure = math.nan  # neighbour ratio of the frame the map started from
         self._map_learned = False       # the map has been updated since it started
@@ -244,6 +247,7 @@ class HRN(Prediction):
         if prepared is None:
             return self._repeat(t_ns)
         img, n_on, n_in = prepared
+        self._t_ns = int(t_ns)
         canvas = self._place(img)
         eng = self._engine
         first = not self._started
@@ -410,8 +414,12 @@ class HRN(Prediction):
 
     def _map_blocked(self) -> bool:
         """Whether the map is still the frame it started from: its updates are blocked for
-        ``map_block`` iterations from its start."""
-        return self.iteration - self._map_iteration <= map_block(self.cfg)
+        ``map_block`` iterations from its start or, if that comes first, until a frame comes
+        more than ``map_block_ns`` after the map's own frame (``imu.block_s``)."""
+        if self.iteration - self._map_iteration > map_block(self.cfg):
+            return False
+        most = map_block_ns(self.cfg)
+        return most <= 0 or self._t_ns - self._map_t_ns <= most
 
     def _lost_unlearned(self, carried: bool) -> bool:
         """Whether the track is lost while its map never learned (``tracking.bootstrap_lost``):
@@ -449,6 +457,7 @@ class HRN(Prediction):
                                if self.cfg.tracking.bootstrap_structure > 0.0 else math.nan)
         self._map_learned = False
         self._map_iteration = self.iteration
+        self._map_t_ns = self._t_ns
 
     def _keep_prior(self, prior: dict[str, Any], point: dict[str, float]
                     ) -> tuple[dict[str, float], dict[str, float], dict[str, Real]]:

@@ -1,10 +1,11 @@
 """Pieces shared by the engines, the network and the spiking backend.
 
 The state update (:func:`state_gamma`, :func:`blend_state`), the map weight and its start
-(:func:`map_mu1`, :func:`map_block`), the cleanup nonlinearity p (:func:`cleanup_weights`),
-the 1-D FPE factor codebooks (:class:`FactorCodebook`, :func:`factor_codebooks`), the readout
-(:func:`normalised_similarity`, :func:`population_readout`, :func:`refine_kernel`,
-:func:`refine_exponent`) and the array type names. The equations are in ``docs/model.md``.
+(:func:`map_mu1`, :func:`map_block`, :func:`map_block_ns`), the cleanup nonlinearity p
+(:func:`cleanup_weights`), the 1-D FPE factor codebooks (:class:`FactorCodebook`,
+:func:`factor_codebooks`), the readout (:func:`normalised_similarity`,
+:func:`population_readout`, :func:`refine_kernel`, :func:`refine_exponent`) and the array type
+names. The equations are in ``docs/model.md``.
 """
 
 from __future__ import annotations
@@ -46,6 +47,13 @@ def map_block(cfg: ResonatorConfig) -> int:
     if cfg.imu.enabled and cfg.imu.block_iterations >= 0:
         return cfg.imu.block_iterations
     return cfg.map.block_iterations
+
+
+def map_block_ns(cfg: ResonatorConfig) -> int:
+    """Longest time of a new map without map updates (ns; 0: no bound): ``imu.block_s`` while
+    the IMU prediction is on. The block ends with ``map_block`` iterations or this time,
+    whichever comes first."""
+    return round(cfg.imu.block_s * 1e9) if cfg.imu.enabled else 0
 
 
 def map_mu1(cfg: ResonatorConfig) -> float:

@@ -15,6 +15,7 @@ from hrn_vo_ros.core.hrn.shared import (
     blend_state,
     cleanup_weights,
     map_block,
+    map_block_ns,
     map_mu1,
     population_readout,
     refine_exponent,
@@ -401,6 +402,37 @@ def test_imu_block_iterations_replaces_the_map_block_only_with_the_imu_on(
         e = hrn.step(event_frame(scene, tuple(pose), rng), i * 5_000_000, gyro_delta=g)
         updated.append(e.map_updated)
     assert updated.index(True) == first
+
+
+@pytest.mark.parametrize(('imu', 'block_s', 'first'), [(True, 0.0, None), (True, 0.02, 5),
+                                                        (True, 0.015, 4), (True, 0.012, 3),
+                                                        (False, 0.012, 5)])
+def test_imu_block_s_ends_the_map_block_after_that_time(imu: bool, block_s: float,
+                                                        first: int | None) -> None:
+    """Frames every 5 ms, 2 iterations each; the gyro's block of 100 iterations does not end
+    within 10 frames, so with the IMU on the first update comes on the first frame more than
+    imu.block_s after the map's frame (0.02 s -> frame 5 at 25 ms; 0.015 s -> frame 4: the
+    frame at exactly 15 ms is still blocked; 0: never); without the IMU the map's own block of
+    10 iterations ends it (frame 5) and imu.block_s is not used. A new map (reset at frame 10)
+    counts from its own frame."""
+    cfg = {'map': {'block_iterations': 10}, 'cleanup': {'iterations_per_frame': 2},
+           'imu': {'enabled': imu, 'block_iterations': 100, 'block_s': block_s},
+           'focal_px': FOCAL}
+    assert map_block_ns(paper_config(cfg)) == (round(block_s * 1e9) if imu else 0)
+    hrn = make(cfg)
+    traj = trajectory(20, amp_xy=1.0)
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    updated = []
+    for i, pose in enumerate(traj):
+        if i == 10:
+            hrn.reset()
+        g = gyro_between(traj[i - 1], pose) if imu and i % 10 else None
+        e = hrn.step(event_frame(scene, tuple(pose), rng), 1_000_000_000 + i * 5_000_000,
+                     gyro_delta=g)
+        updated.append(e.map_updated)
+    for half in (updated[:10], updated[10:]):
+        assert (half.index(True) if True in half else None) == first
 
 
 def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
