@@ -172,7 +172,7 @@ class ImuConfig:
                             'through focal_px) is rejected: the states keep the prediction '
                             'and the map is not updated, so one bad frame cannot slip the map',
                             lo=0.0, hi=180.0)
-    max_correction_deg_s: float = param(5.0, 'largest correction of the gyro prediction by a '
+    max_correction_deg_s: float = param(2.0, 'largest correction of the gyro prediction by a '
                                         'readout, deg per second of frame time (0: off): a '
                                         'larger difference is cut to it (states moved to the '
                                         'cut readout), so the frames can only remove gyro '
