@@ -380,6 +380,25 @@ def test_the_map_learns_with_imu_mu1_while_the_gyro_predicts() -> None:
                                   final_map({'map': {'mu1': 0.9}}, imu=False))
 
 
+def map_updates(cfg: dict, n: int, imu: bool, *, reset_at: int = -1, t0_ns: int = 0
+                ) -> list[bool]:
+    """``map_updated`` of n frames of a random scene 5 ms apart (the gyro's increments with the
+    IMU on, none on a map's first frame); the network is reset before frame ``reset_at``."""
+    hrn = make(cfg)
+    traj = trajectory(n, amp_xy=1.0)
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    updated = []
+    for i, pose in enumerate(traj):
+        if i == reset_at:
+            hrn.reset()
+        g = gyro_between(traj[i - 1], pose) if imu and i not in (0, reset_at) else None
+        e = hrn.step(event_frame(scene, tuple(pose), rng), t0_ns + i * 5_000_000,
+                     gyro_delta=g)
+        updated.append(e.map_updated)
+    return updated
+
+
 @pytest.mark.parametrize(('imu', 'imu_block', 'first'), [(False, 4, 5), (True, 4, 2),
                                                           (True, -1, 5), (True, 0, 0)])
 def test_imu_block_iterations_replaces_the_map_block_only_with_the_imu_on(
@@ -392,16 +411,7 @@ def test_imu_block_iterations_replaces_the_map_block_only_with_the_imu_on(
            'imu': {'enabled': imu, 'block_iterations': imu_block}, 'focal_px': FOCAL}
     assert map_block(paper_config(cfg)) == (imu_block if imu and imu_block >= 0
                                                            else 10)
-    hrn = make(cfg)
-    traj = trajectory(10, amp_xy=1.0)
-    rng = np.random.default_rng(0)
-    scene = random_scene(rng)
-    updated = []
-    for i, pose in enumerate(traj):
-        g = gyro_between(traj[i - 1], pose) if imu and i else None
-        e = hrn.step(event_frame(scene, tuple(pose), rng), i * 5_000_000, gyro_delta=g)
-        updated.append(e.map_updated)
-    assert updated.index(True) == first
+    assert map_updates(cfg, 10, imu).index(True) == first
 
 
 @pytest.mark.parametrize(('imu', 'block_s', 'first'), [(True, 0.0, None), (True, 0.02, 5),
@@ -419,18 +429,7 @@ def test_imu_block_s_ends_the_map_block_after_that_time(imu: bool, block_s: floa
            'imu': {'enabled': imu, 'block_iterations': 100, 'block_s': block_s},
            'focal_px': FOCAL}
     assert map_block_ns(paper_config(cfg)) == (round(block_s * 1e9) if imu else 0)
-    hrn = make(cfg)
-    traj = trajectory(20, amp_xy=1.0)
-    rng = np.random.default_rng(0)
-    scene = random_scene(rng)
-    updated = []
-    for i, pose in enumerate(traj):
-        if i == 10:
-            hrn.reset()
-        g = gyro_between(traj[i - 1], pose) if imu and i % 10 else None
-        e = hrn.step(event_frame(scene, tuple(pose), rng), 1_000_000_000 + i * 5_000_000,
-                     gyro_delta=g)
-        updated.append(e.map_updated)
+    updated = map_updates(cfg, 20, imu, reset_at=10, t0_ns=1_000_000_000)
     for half in (updated[:10], updated[10:]):
         assert (half.index(True) if True in half else None) == first
 
