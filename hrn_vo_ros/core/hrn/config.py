@@ -256,6 +256,11 @@ class TrackingConfig:
                              'exceeds that of the predicted pose by this much; else the states '
                              'keep the prediction (hot-pixel and noise frames of a pause cannot '
                              'move the track; -1: off)', lo=-1.0, hi=1.0)
+    jump_deg: float = param(60.0, 'while tracking, a frame whose roll readout is more than '
+                            'this many degrees from the predicted roll moves the states only '
+                            'as a poor frame does (hold_gain): a turn that large between two '
+                            'frames is the half-turn ambiguity of the log-polar spectrum, not '
+                            'motion (0: off)', lo=0.0, hi=180.0)
     hold_density: float = param(0.5, 'a frame is sparse for hold_gain with fewer on pixels '
                                 'than this fraction of the running mean over tracked frames '
                                 '(a full frame of a fast jump keeps converging)', lo=0.0,
@@ -445,7 +450,7 @@ PAPER_NETWORK: Mapping[str, Scalar] = MappingProxyType({
     'imu.bias_memory_s': 0.0,
     'tracking.map_quality': 0.45, 'tracking.gyro_poor': False,
     'tracking.bootstrap_frames': 12, 'tracking.bootstrap_structure': 0.0,
-    'tracking.remap_s': 0.0,
+    'tracking.remap_s': 0.0, 'tracking.jump_deg': 0.0,
 })
 
 

@@ -361,10 +361,15 @@ class HRN(Prediction):
         o1 = eng.overlap(target)
         q = tr.overlap_quality(o1)
         books = eng.books
-        if prior is not None and tr.unusual(n_on) and not rejected \
-                and min(q, tr.sharpness(peak)) < c.tracking.degrade:
-            # a poor frame, sparse or dense, moves the states only if that clearly improves
-            # the match over the prediction: else they keep it (hot pixels, noise, a pause)
+        # (the roll may jump only away from a tracked pose: a degraded track's prediction
+        # is no reference)
+        jumped = (prior is not None and not rejected and tr.state == 'tracking'
+                  and self._jumped(point, prior_point))
+        if prior is not None and not rejected and (
+                jumped or (tr.unusual(n_on) and min(q, tr.sharpness(peak)) < c.tracking.degrade)):
+            # a poor frame, sparse or dense, or one whose roll jumps (a half turn), moves the
+            # states only if that clearly improves the match over the prediction: else they
+            # keep it (hot pixels, noise, a pause, the log-polar spectrum's symmetry)
             pp = {k: books[k].wrap(v) for k, v in prior_point.items()}
             t0 = eng.map_target(S, pp)
             o0 = eng.overlap(t0)
@@ -396,6 +401,20 @@ class HRN(Prediction):
                 prior, {k: books[k].wrap(v) for k, v in prior_point.items()})
             target = eng.map_target(S, point)
         return point, spread, peak, sims, target
+
+    def _jumped(self, point: dict[str, float], prior_point: dict[str, float]) -> bool:
+        """Whether the roll readout ``point`` is more than ``tracking.jump_deg`` from the
+        predicted roll ``prior_point`` (index units, wrapped)."""
+        bound = self.cfg.tracking.jump_deg
+        if bound <= 0.0 or 'r' not in point:
+            return False
+        b = self._engine.books['r']
+        d = point['r'] - prior_point['r']
+        turn = abs(float(d if b.period is None else centred_mod(d, b.period))) * b.unit
+        if turn > math.radians(bound):
+            self.tracker.jumps += 1
+            return True
+        return False
 
     def _thin_map(self, n_in: int) -> bool:
         """Whether the map is still its first frame (learning blocked) and this frame has more

@@ -12,7 +12,7 @@ Public API: ``Tracker(cfg: TrackingConfig)`` with ``reset()``, ``overlap_quality
 ``bootstrap_due()``, ``remap_due(t_ns)``, ``restart()``, ``relocked(q)``, ``psr_on``, ``poor``,
 ``sparse(n_on)``, ``unusual(n_on)``, ``after_gap(dt_s)``, ``gap_search``,
 ``note_tracked(n_on, dt_s)``, ``reported`` and the attributes ``state``, ``quality``,
-``overlap``, ``distinct``, ``relocalisations``, ``held_frames``, ``established``,
+``overlap``, ``distinct``, ``relocalisations``, ``held_frames``, ``jumps``, ``established``,
 ``restarts``, ``lost_since``, ``interval``, ``gaps``, ``poor_run``.
 """
 
@@ -42,6 +42,7 @@ class Tracker:
         self.quality = 1.0              # quality of the last valid frame
         self.relocalisations = 0        # accepted re-localisations
         self.held_frames = 0            # poor sparse frames whose update was undone
+        self.jumps = 0                  # frames whose roll readout jumped (jump_deg)
         self.established = False        # a frame after the map's first one reached tracking
         self.restarts = 0               # maps started afresh (bootstrap_due)
         self.interval: float | None = None  # running mean interval (s) of tracked frames

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from hrn_synth import event_frame, random_scene, trajectory
 import numpy as np
 import pytest
@@ -329,6 +331,79 @@ def test_a_burst_of_dense_noise_does_not_move_the_track(dense: float) -> None:
     back = run(hrn, scene, np.repeat(last[None], 10, axis=0), rng, t0=160)
     assert back[-1].state == 'tracking'
     assert abs(back[-1].r - last[2]) < np.deg2rad(1.0) and abs(back[-1].h - last[0]) < 0.5
+
+
+class _HalfTurn(HRN):
+    """Turns the roll state half a turn after the iterations of the frames in ``flips``
+    (counted from 0): the readout of a frame whose roll settled on the other branch of the
+    point symmetry of the log-polar spectrum (|F(k)| = |F(-k)| for any real frame)."""
+
+    flips: frozenset[int] = frozenset()
+
+    def _resonate(self, S: Any) -> Any:
+        n = getattr(self, '_frames', 0)
+        self._frames = n + 1
+        if n not in self.flips:
+            return super()._resonate(S)
+        super()._resonate(S)
+        self._engine.shift('r', self._engine.books['r'].period / 2)
+        sims = self._engine.similarities()
+        return (sims, *self._readout(sims))
+
+
+def _symmetric_scene(rng: np.random.Generator) -> np.ndarray:
+    """A shapes scene that is its own half turn about the frames' centre at zero shift."""
+    s = random_scene(rng)
+    return np.maximum(s, np.roll(s[::-1, ::-1], 1, axis=(0, 1)))
+
+
+@pytest.mark.parametrize(('bound', 'before'), [(60.0, 'tracking'), (0.0, 'tracking'),
+                                               (60.0, 'degraded')])
+def test_a_half_turn_readout_keeps_the_prediction(bound: float, before: str) -> None:
+    """A roll readout more than tracking.jump_deg from the prediction of a tracked pose moves
+    the states only if it clearly beats the prediction's match: on a scene that looks the
+    same turned by a half turn it does not, so the frame keeps the prediction; without the
+    bound, or when the track was degraded (its prediction is no reference), the same readout
+    turns the output by 180 degrees at full quality while the state says tracking (on
+    textured simulated draws the map then learns the turned view: a silent loss)."""
+    rng = np.random.default_rng(0)
+    scene = _symmetric_scene(rng)
+    poses = trajectory(130, amp_roll=0.3, period=250.0)
+    hrn = make({'tracking': {'relocalise': False, 'jump_deg': bound}})
+    hrn.__class__ = _HalfTurn
+    hrn.flips = frozenset({100})
+    est = run(hrn, scene, poses[:100], rng)
+    hrn.tracker.state = before
+    est += run(hrn, scene, poses[100:101], rng, t0=100)
+    jumps = hrn.tracker.jumps                                  # at the turned frame
+    est += run(hrn, scene, poses[101:], rng, t0=101)
+    err = np.degrees(np.abs(np.angle(np.exp(1j * (np.array([e.r for e in est])
+                                                    - poses[:, 2])))))
+    assert err[:100].max() < 1.0, err[:100].max()              # measured 0.39 deg
+    if not bound or before != 'tracking':
+        assert jumps == 0
+        assert err[100] > 179.0, err[100]                      # measured 179.8 deg
+        assert est[100].quality > 0.9, est[100].quality        # measured 0.94
+        assert est[-1].state == 'tracking'
+        return
+    assert jumps == hrn.tracker.jumps == 1 and hrn.tracker.held_frames == 1
+    assert err[100:].max() < 1.0, err[100:].max()              # measured 0.27 deg
+    assert [e.state for e in est[100:]] == ['tracking'] * 30
+
+
+def test_the_roll_jump_is_measured_across_the_wrap() -> None:
+    """tracking.jump_deg against hand-computed turns (192 roll samples: 1.875 deg each):
+    across the codebook's wrap, at the bound (not a jump) and one sample beyond it."""
+    hrn = make({'tracking': {'jump_deg': 60.0}})
+    cases = [((95.0, -95.0), False),          # 2 samples across the wrap: 3.75 deg
+             ((-2.0, 30.0), False),           # 32 samples: 60 deg, at the bound
+             ((-2.0, 31.0), True),            # 33 samples: 61.9 deg
+             ((90.0, -69.0), True),           # 33 samples across the wrap
+             ((0.0, 96.0), True)]             # a half turn
+    out = [hrn._jumped({'r': b}, {'r': a}) for (a, b), _ in cases]
+    assert out == [j for _, j in cases]
+    assert hrn.tracker.jumps == 3
+    assert not make()._jumped({'r': 96.0}, {'r': 0.0})        # 0: off
 
 
 def test_a_split_state_has_low_quality() -> None:
