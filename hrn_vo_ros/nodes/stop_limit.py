@@ -6,8 +6,11 @@ from __future__ import annotations
 import faulthandler
 import threading
 import time
+import weakref
 
 import rclpy
+from rclpy.context import Context
+import rclpy.utilities
 
 #: Seconds a node process may take to end once it is stopping (its context shut down by a
 #: signal or externally, or its clean-up begun); then every thread's stack goes to stderr and
@@ -37,11 +40,16 @@ class StopLimit:
         self._done = False
 
     def watch(self) -> None:
-        """Start the thread that arms the limit once the context is no longer ok."""
-        threading.Thread(target=self._watch, name='hrn_vo_ros_stop_limit', daemon=True).start()
+        """Start the thread that arms the limit once the (initialised) default context is no
+        longer ok. It watches that context object, through a weak reference (the context is
+        collected when ``run`` ends): ``rclpy.ok()`` after a shutdown would make a new default
+        context, left alive past ``run``."""
+        ref = weakref.ref(rclpy.utilities.get_default_context())
+        threading.Thread(target=self._watch, args=(ref,), name='hrn_vo_ros_stop_limit',
+                         daemon=True).start()
 
-    def _watch(self) -> None:
-        while not self._done and rclpy.ok():
+    def _watch(self, ref: weakref.ref[Context]) -> None:
+        while not self._done and _ok(ref):
             time.sleep(WATCH_PERIOD_S)
         self.arm()
 
@@ -56,3 +64,9 @@ class StopLimit:
         with self._lock:
             self._done = True
             faulthandler.cancel_dump_traceback_later()
+
+
+def _ok(ref: weakref.ref[Context]) -> bool:
+    """Whether the referenced context still exists and is ok (no reference kept)."""
+    context = ref()
+    return context is not None and context.ok()

@@ -314,19 +314,31 @@ def test_a_crash_in_c_prints_where_it_happened() -> None:
 
 def test_no_rclpy_object_outlives_run() -> None:
     """run() ends with the node, its executor and its context collected (not left to the
-    interpreter's finalization)."""
+    interpreter's finalization), also when the stop limit's watchdog looks at the context
+    after its shutdown (a clean-up longer than its period: rclpy.ok() there made a new
+    default context that outlived run)."""
     script = """
-import gc, sys
+import gc, sys, time, weakref
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import Executor
 from hrn_vo_ros.nodes.process import run
 from hrn_vo_ros.nodes.packetizer_node import PacketizerNode
+from hrn_vo_ros.nodes.stop_limit import WATCH_PERIOD_S
 
 class Node(PacketizerNode):
     def __init__(self):
         super().__init__()
         self.create_timer(0.3, rclpy.try_shutdown)
+        ctx.append(weakref.ref(self.context))
+
+def slow_full_collection(phase, info):     # run's last gc.collect, after the shutdown
+    context = ctx[0]() if ctx else None
+    if phase == 'start' and info['generation'] == 2 and ctx and not (context and context.ok()):
+        time.sleep(2 * WATCH_PERIOD_S)
+
+ctx = []
+gc.callbacks.append(slow_full_collection)
 
 code = run(Node)
 live = [type(o).__name__ for o in gc.get_objects()
