@@ -363,10 +363,9 @@ class HRN(Prediction):
         books = eng.books
         # (the roll may jump only away from a tracked pose: a degraded track's prediction
         # is no reference)
-        jumped = (prior is not None and not rejected and tr.state == 'tracking'
-                  and self._jumped(point, prior_point))
         if prior is not None and not rejected and (
-                jumped or (tr.unusual(n_on) and min(q, tr.sharpness(peak)) < c.tracking.degrade)):
+                (tr.state == 'tracking' and self._jumped(point, prior_point))
+                or (tr.unusual(n_on) and min(q, tr.sharpness(peak)) < c.tracking.degrade)):
             # a poor frame, sparse or dense, or one whose roll jumps (a half turn), moves the
             # states only if that clearly improves the match over the prediction: else they
             # keep it (hot pixels, noise, a pause, the log-polar spectrum's symmetry)
@@ -409,9 +408,7 @@ class HRN(Prediction):
         if bound <= 0.0 or 'r' not in point:
             return False
         b = self._engine.books['r']
-        d = point['r'] - prior_point['r']
-        turn = abs(float(d if b.period is None else centred_mod(d, b.period))) * b.unit
-        if turn > math.radians(bound):
+        if abs(b.wrap(point['r'] - prior_point['r'])) * b.unit > math.radians(bound):
             self.tracker.jumps += 1
             return True
         return False
