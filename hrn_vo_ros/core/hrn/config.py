@@ -287,11 +287,12 @@ class TrackingConfig:
                                   '(a first frame of noise before the camera moves has nothing '
                                   'to track; a jump converges in fewer frames; 0: off)',
                                   lo=0, hi=1000)
-    bootstrap_fill: float = param(4.0, 'while the map is still the frame it started from (map '
+    bootstrap_fill: float = param(1.8, 'while the map is still the frame it started from (map '
                                   'learning blocked, map.block_iterations), a frame with more '
                                   'than this many times its on pixels starts the map anew from '
                                   'itself, at the pose the output reports (a short first packet '
-                                  'at the start of the motion is a thin map; 0: off)',
+                                  'at the start of the motion is a thin map, and a refilled '
+                                  'next packet holds all of it; 0: off)',
                                   lo=0.0, hi=1000.0)
     bootstrap_structure: float = param(1.5, 'while the map is still the frame it started '
                                        'from (map learning blocked, map.block_iterations) and '
@@ -450,7 +451,7 @@ PAPER_NETWORK: Mapping[str, Scalar] = MappingProxyType({
     'imu.bias_memory_s': 0.0,
     'tracking.map_quality': 0.45, 'tracking.gyro_poor': False,
     'tracking.bootstrap_frames': 12, 'tracking.bootstrap_structure': 0.0,
-    'tracking.remap_s': 0.0, 'tracking.jump_deg': 0.0,
+    'tracking.remap_s': 0.0, 'tracking.jump_deg': 0.0, 'tracking.bootstrap_fill': 4.0,
 })
 
 

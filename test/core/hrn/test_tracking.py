@@ -753,6 +753,29 @@ def test_a_thin_first_map_is_replaced_by_a_fuller_frame() -> None:
     assert ref.tracker.restarts == 0
 
 
+def test_a_half_full_first_packet_restarts_the_map_at_the_default_fill() -> None:
+    """A slow start's refilled packets: the first one closes on time with about half a frame's
+    pixels (nothing before it to refill from) and the next holds every one of them and as many
+    new. The default bootstrap_fill (1.8) starts the map anew on that next frame, once; the
+    old 4 kept the half map (its overlap with the next frame, which contains it, then set a
+    reference that the later frames, sharing nothing with it, could not reach)."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    poses = trajectory(60, amp_xy=6.0, amp_roll=0.25, period=150.0)
+    full = event_frame(scene, tuple(poses[1]), rng)
+    half = full * (rng.random(full.shape) < 0.45)       # a subset of the next frame
+    assert 1.8 < np.count_nonzero(full) / np.count_nonzero(half) < 4.0
+    assert TrackingConfig().bootstrap_fill == 1.8
+    restarts = {}
+    for fill in (1.8, 4.0):
+        hrn = make({'tracking': {'bootstrap_fill': fill}})
+        hrn.step(half.astype(np.uint8), 0)
+        hrn.step(full.astype(np.uint8), 5_000_000)
+        run(hrn, scene, poses[2:], np.random.default_rng(1), t0=2)
+        restarts[fill] = hrn.tracker.restarts
+    assert restarts == {1.8: 1, 4.0: 0}
+
+
 def structure_bootstrap_alone(least: float) -> dict[str, dict[str, object]]:
     """Overrides with the structure bootstrap at ``least`` and the other bootstraps off."""
     return {'tracking': {'bootstrap_structure': least, 'bootstrap_frames': 0,
