@@ -110,10 +110,12 @@ class SpikingEngine(FastEngine):
             self._set_state(k, encode(x, self.scfg, fire_threshold=0.0, rounding=self.rounding))
 
     def set_rounding(self, rng: np.random.Generator) -> None:
-        """Every population's payload rounding (``SpikingConfig.rounding``; stochastic: from
-        ``rng``, the network's generator), set once when the network builds the engine, so
-        that its first frame is coded like the others."""
-        self.rounding = Rounding(rng if self.scfg.rounding == 'stochastic' else None)
+        """Every population's payload and spike-step rounding (``SpikingConfig.rounding``,
+        ``phase_rounding``; stochastic: from ``rng``, the network's generator), set once when
+        the network builds the engine, so that its first frame is coded like the others."""
+        self.rounding = Rounding(
+            rng if self.scfg.rounding == 'stochastic' else None,
+            phase_rng=rng if self.scfg.phase_rounding == 'stochastic' else None)
         for cl in self.cleanups.values():
             cl.rounding = self.rounding
 

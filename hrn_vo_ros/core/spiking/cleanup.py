@@ -33,7 +33,6 @@ from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
     encode_many,
     NEAREST,
-    phase_to_step,
     rf_cycle_populations,
     Rounding,
     Spikes,
@@ -263,7 +262,7 @@ def step_many(items: list[tuple[SpikingCleanup, Complex, Spikes | None]]
                          for (cl, _, _), p_sp in zip(items, p_sps, strict=True)])
     # the cleanup neurons' spike steps (one pass for all factors' drives)
     sizes = [d.size for d in drives]
-    steps = np.split(phase_to_step(np.concatenate(drives), cfg.steps_per_cycle),
+    steps = np.split(rnd.step(np.concatenate(drives), cfg.steps_per_cycle),
                      np.cumsum(sizes)[:-1])
     pairs = [cl._pairs(d, t, st)
              for (cl, _, st), d, t in zip(items, drives, steps, strict=True)]

@@ -86,6 +86,12 @@ class SpikingConfig:
         'probability of the fraction, from a pseudo-random number per neuron and cycle '
         "(dithered; unbiased; the network's rng; Loihi's compartments have a noise source)",
         choices=('nearest', 'stochastic'), read_only=True)
+    phase_rounding: str = param(
+        'nearest', 'spike steps rounded to the nearest step, or stochastic: round(arg z T / '
+        "2 pi) becomes floor(arg z T / 2 pi + u), u uniform in [0, 1) per neuron and cycle from "
+        "the network's rng (dithered spike times: unbiased, so a phase change below half a step "
+        'still moves what the cleanup and state neurons send; a noise source on the neuron)',
+        choices=('nearest', 'stochastic'), read_only=True)
     nonlinearity: str = param(
         'same', "p of the similarity neurons: same = the float backend's p on their state "
         '(exp needs a K-input max circuit), relu = ReLU(a - threshold * input mass)',

@@ -103,12 +103,32 @@ class Rounding:
     after cycle). The values stay within the population's range (``x <= 2^B - 1`` gives at most
     ``2^B - 1``).
 
+    The same object rounds the spike steps (:meth:`step`): to the nearest step, or with
+    ``phase_rng`` dithered, ``floor(arg(z) T / 2 pi + u) mod T`` (``SpikingConfig.
+    phase_rounding``).
+
     Args:
         rng: The source of the uniform numbers (None: round to the nearest).
+        phase_rng: The source of the spike steps' dither (None: the nearest step).
     """
 
-    def __init__(self, rng: np.random.Generator | None = None) -> None:
+    def __init__(self, rng: np.random.Generator | None = None, *,
+                 phase_rng: np.random.Generator | None = None) -> None:
         self.rng = rng
+        self.phase_rng = phase_rng
+
+    def step(self, z: NDArray[np.complexfloating], steps: int) -> Int:
+        """The spike step of each value: :func:`phase_to_step`, or dithered (``phase_rng``).
+
+        Shapes:
+            z: any; returns the same shape, int64 in ``[0, steps)``.
+        """
+        if self.phase_rng is None:
+            return phase_to_step(z, steps)
+        x = np.angle(z) * (steps / (2.0 * np.pi))
+        x += self.phase_rng.random(np.shape(x))
+        out: Int = np.floor(x).astype(np.int64) % steps
+        return out
 
     def __call__(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
         """``x`` rounded (a new array)."""
@@ -248,7 +268,7 @@ def encode(z: Complex, cfg: SpikingConfig, *, fire_threshold: float | None = Non
     """
     thr = cfg.fire_threshold if fire_threshold is None else fire_threshold
     mag = np.abs(z)
-    t = phase_to_step(z, cfg.steps_per_cycle)
+    t = rounding.step(z, cfg.steps_per_cycle)
     live = mag > 0.0
     if thr > 0.0 and mag.size:
         live &= mag >= thr * float(mag.mean())
@@ -294,7 +314,7 @@ def encode_many(zs: list[Complex], cfg: SpikingConfig, *, fire_threshold: float 
                 for z, w in zip(zs, wl, strict=True)]
     flat = np.concatenate([np.ravel(z) for z in zs])
     mag = np.abs(flat)
-    t = phase_to_step(flat, cfg.steps_per_cycle)
+    t = rounding.step(flat, cfg.steps_per_cycle)
     sizes = [np.size(z) for z in zs]
     ends = np.cumsum(sizes)
     exps = [_population_exponent(mag[end - n:end], cfg, w, wide_bits)

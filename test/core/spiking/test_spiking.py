@@ -237,6 +237,56 @@ def test_stochastic_rounding_reaches_every_population_and_repeats_with_the_seed(
         np.testing.assert_allclose(runs[name][-1, :2], [4.4, -3.3], atol=1.0)
 
 
+def test_dithered_spike_steps_are_unbiased_where_the_nearest_holds_still() -> None:
+    """T = 32 (steps of 11.25 deg): a phase of 3 deg (0.267 step) is sent at step 0 in every
+    cycle to the nearest; dithered it is sent at step 1 in 26.7 % of the cycles and at step 0
+    in the rest, never elsewhere; -3 deg goes to step 31 as often; a phase on a step stays on
+    it. The payloads are not touched (the phases' generator is not the payloads')."""
+    T = 32
+    z = np.exp(1j * np.radians([3.0, -3.0, 2.0 * 11.25, 100.0]))
+    cfg = SpikingConfig(steps_per_cycle=T)
+    assert list(encode(z, cfg).t) == [0, 0, 2, 9]     # 100 deg = 8.89 steps
+    rnd = Rounding(phase_rng=np.random.default_rng(3))
+    ts = np.array([encode(z, cfg, rounding=rnd).t for _ in range(4000)])
+    assert set(np.unique(ts[:, 0])) == {0, 1} and set(np.unique(ts[:, 1])) == {0, 31}
+    assert set(np.unique(ts[:, 2])) == {2} and set(np.unique(ts[:, 3])) == {8, 9}
+    # 4000 Bernoulli(0.267): std of the mean 0.007
+    assert (ts[:, 0] == 1).mean() == pytest.approx(3.0 / 11.25, abs=0.025)
+    assert (ts[:, 1] == 31).mean() == pytest.approx(3.0 / 11.25, abs=0.025)
+    assert (ts[:, 3] == 9).mean() == pytest.approx(100.0 / 11.25 - 8.0, abs=0.025)
+    np.testing.assert_array_equal(encode(z, cfg, rounding=rnd).g, encode(z, cfg).g)
+    # without a generator the steps are phase_to_step's
+    w = np.exp(1j * np.linspace(-np.pi, np.pi, 101))
+    np.testing.assert_array_equal(Rounding().step(w, T), phase_to_step(w, T))
+
+
+def test_dithered_spike_steps_reach_the_cleanups_and_repeat_with_the_seed() -> None:
+    """phase_rounding stochastic hands the network's generator to the spike steps of every
+    population the engine and its cleanups send (payloads stay to the nearest); the same seed
+    gives the same estimates, another seed and the nearest steps others, all following the
+    motion."""
+    cfg = paper_config({})
+    sto = SpikingConfig(phase_rounding='stochastic')
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    frames = [event_frame(scene, (0.4 * i, -0.3 * i, 0.004 * i, 0.0), rng) for i in range(12)]
+    runs = {}
+    for name, seed, scfg in (('a', 1, sto), ('b', 1, sto), ('c', 2, sto),
+                             ('nearest', 1, SpikingConfig())):
+        b = SpikingHRN(cfg, rng=np.random.default_rng(seed), spiking=scfg)
+        est = [b.step(f, i * 5_000_000) for i, f in enumerate(frames)]
+        eng = b._spiking_engine
+        assert (eng.rounding.phase_rng is not None) == (name != 'nearest')
+        assert eng.rounding.rng is None
+        assert all(cl.rounding is eng.rounding for cl in eng.cleanups.values())
+        runs[name] = np.array([(e.h, e.v, e.r) for e in est])
+    np.testing.assert_array_equal(runs['a'], runs['b'])
+    assert not np.array_equal(runs['a'], runs['c'])
+    assert not np.array_equal(runs['a'], runs['nearest'])
+    for name in runs:
+        np.testing.assert_allclose(runs[name][-1, :2], [4.4, -3.3], atol=1.0)
+
+
 def test_state_shift_counts_each_neurons_largest_payload() -> None:
     q = QuantisedWeights(np.array([[100, 50]]), np.array([[0, 0]]), 0)
     cfg = SpikingConfig(payload_bits=8, state_bits=24)
