@@ -210,11 +210,15 @@ def test_stochastic_rounding_is_unbiased_where_the_nearest_holds_still() -> None
     np.testing.assert_array_equal(a, b)
 
 
-def test_stochastic_rounding_reaches_every_population_and_repeats_with_the_seed() -> None:
+@pytest.mark.parametrize('field', ['rounding', 'phase_rounding'])
+def test_stochastic_rounding_reaches_every_population_and_repeats_with_the_seed(
+        field: str) -> None:
     """The engine hands the network's generator to the cleanups and the sparse transforms'
-    code; two networks of the same seed give the same estimates, another seed others."""
+    code, for the payloads (``rounding``) or the spike steps (``phase_rounding``) only; two
+    networks of the same seed give the same estimates, another seed and the nearest others,
+    all following the motion."""
     cfg = paper_config({})
-    sto = SpikingConfig(rounding='stochastic')
+    sto = SpikingConfig(**{field: 'stochastic'})
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
     frames = [event_frame(scene, (0.4 * i, -0.3 * i, 0.004 * i, 0.0), rng) for i in range(12)]
@@ -224,8 +228,9 @@ def test_stochastic_rounding_reaches_every_population_and_repeats_with_the_seed(
         b = SpikingHRN(cfg, rng=np.random.default_rng(seed), spiking=scfg)
         est = [b.step(f, i * 5_000_000) for i, f in enumerate(frames)]
         eng = b._spiking_engine
-        stochastic = scfg.rounding == 'stochastic'
-        assert (eng.rounding.rng is not None) == stochastic
+        stochastic = name != 'nearest'
+        assert (eng.rounding.rng is not None) == (stochastic and field == 'rounding')
+        assert (eng.rounding.phase_rng is not None) == (stochastic and field != 'rounding')
         assert all(cl.rounding is eng.rounding for cl in eng.cleanups.values())
         assert eng.tf.code.rounding is eng.rounding             # (the sparse form)
         runs[name] = np.array([(e.h, e.v, e.r) for e in est])
@@ -258,33 +263,6 @@ def test_dithered_spike_steps_are_unbiased_where_the_nearest_holds_still() -> No
     # without a generator the steps are phase_to_step's
     w = np.exp(1j * np.linspace(-np.pi, np.pi, 101))
     np.testing.assert_array_equal(Rounding().step(w, T), phase_to_step(w, T))
-
-
-def test_dithered_spike_steps_reach_the_cleanups_and_repeat_with_the_seed() -> None:
-    """phase_rounding stochastic hands the network's generator to the spike steps of every
-    population the engine and its cleanups send (payloads stay to the nearest); the same seed
-    gives the same estimates, another seed and the nearest steps others, all following the
-    motion."""
-    cfg = paper_config({})
-    sto = SpikingConfig(phase_rounding='stochastic')
-    rng = np.random.default_rng(0)
-    scene = random_scene(rng)
-    frames = [event_frame(scene, (0.4 * i, -0.3 * i, 0.004 * i, 0.0), rng) for i in range(12)]
-    runs = {}
-    for name, seed, scfg in (('a', 1, sto), ('b', 1, sto), ('c', 2, sto),
-                             ('nearest', 1, SpikingConfig())):
-        b = SpikingHRN(cfg, rng=np.random.default_rng(seed), spiking=scfg)
-        est = [b.step(f, i * 5_000_000) for i, f in enumerate(frames)]
-        eng = b._spiking_engine
-        assert (eng.rounding.phase_rng is not None) == (name != 'nearest')
-        assert eng.rounding.rng is None
-        assert all(cl.rounding is eng.rounding for cl in eng.cleanups.values())
-        runs[name] = np.array([(e.h, e.v, e.r) for e in est])
-    np.testing.assert_array_equal(runs['a'], runs['b'])
-    assert not np.array_equal(runs['a'], runs['c'])
-    assert not np.array_equal(runs['a'], runs['nearest'])
-    for name in runs:
-        np.testing.assert_allclose(runs[name][-1, :2], [4.4, -3.3], atol=1.0)
 
 
 def test_state_shift_counts_each_neurons_largest_payload() -> None:
