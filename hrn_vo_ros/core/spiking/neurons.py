@@ -125,18 +125,16 @@ class Rounding:
         """
         if self.phase_rng is None:
             return phase_to_step(z, steps)
-        x = np.angle(z) * (steps / (2.0 * np.pi))
-        x += self.phase_rng.random(np.shape(x))
-        out: Int = np.floor(x).astype(np.int64) % steps
+        x = _dithered(np.angle(z) * (steps / (2.0 * np.pi)), self.phase_rng)
+        out: Int = x.astype(np.int64) % steps
         return out
 
     def __call__(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
         """``x`` rounded (a new array)."""
         if self.rng is None:
             out: NDArray[np.floating] = np.rint(x)
-        else:
-            out = np.floor(x + self.rng.random(np.shape(x)))
-        return out
+            return out
+        return _dithered(x, self.rng)
 
     def inplace(self, x: NDArray[np.float32]) -> None:
         """``x`` (float32) rounded in place."""
@@ -149,6 +147,13 @@ class Rounding:
 
 #: Round to the nearest (``SpikingConfig.rounding = 'nearest'``).
 NEAREST = Rounding()
+
+
+def _dithered(x: NDArray[np.floating], rng: np.random.Generator) -> NDArray[np.floating]:
+    """``floor(x + u)``, ``u`` uniform in [0, 1) from ``rng`` per element (a new array):
+    up with the probability of the fraction, so unbiased."""
+    out: NDArray[np.floating] = np.floor(x + rng.random(np.shape(x)))
+    return out
 
 
 def phase_to_step(z: NDArray[np.complexfloating], steps: int) -> Int:
