@@ -8,7 +8,6 @@ import threading
 import time
 import weakref
 
-import rclpy
 from rclpy.context import Context
 import rclpy.utilities
 
