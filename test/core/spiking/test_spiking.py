@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from hrn_synth import event_frame, random_scene
@@ -218,13 +219,14 @@ def test_stochastic_rounding_reaches_every_population_and_repeats_with_the_seed(
     networks of the same seed give the same estimates, another seed and the nearest others,
     all following the motion."""
     cfg = paper_config({})
-    sto = SpikingConfig(**{field: 'stochastic'})
+    nearest = SpikingConfig(rounding='nearest', phase_rounding='nearest')
+    sto = replace(nearest, **{field: 'stochastic'})
     rng = np.random.default_rng(0)
     scene = random_scene(rng)
     frames = [event_frame(scene, (0.4 * i, -0.3 * i, 0.004 * i, 0.0), rng) for i in range(12)]
     runs = {}
     for name, seed, scfg in (('a', 1, sto), ('b', 1, sto), ('c', 2, sto),
-                             ('nearest', 1, SpikingConfig())):
+                             ('nearest', 1, nearest)):
         b = SpikingHRN(cfg, rng=np.random.default_rng(seed), spiking=scfg)
         est = [b.step(f, i * 5_000_000) for i, f in enumerate(frames)]
         eng = b._spiking_engine
