@@ -144,7 +144,7 @@ from hrn_vo_ros.core.sim.family import (  # noqa: E402
 )
 from hrn_vo_ros.core.sim.simulator import describe_motion  # noqa: E402
 from hrn_vo_ros.core.spiking.config import SpikingConfig  # noqa: E402
-from hrn_vo_ros.errors import DatasetError  # noqa: E402
+from hrn_vo_ros.errors import ConfigError, DatasetError  # noqa: E402
 from hrn_vo_ros.io import ecd  # noqa: E402
 from hrn_vo_ros.io.plots import plot_evaluation  # noqa: E402
 from hrn_vo_ros.io.yamlconfig import dataset_configs, load_configs  # noqa: E402
@@ -899,6 +899,25 @@ def _sensor_arg(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f'{text!r} is not WIDTH or WIDTHxHEIGHT') from None
 
 
+def _check_overrides(kinds: list[str], config: Path | None, over: dict[str, Any],
+                     p_over: dict[str, Any], s_over: dict[str, Any]) -> str | None:
+    """What is wrong with the ``--set``, ``--pset`` and ``--sset`` overrides (None: nothing):
+    each kind's config file must take the first two, :class:`SpikingConfig` the third."""
+    known = {f.name for f in fields(SpikingConfig)}
+    unknown = sorted(set(s_over) - known)
+    if unknown:
+        return (f'--sset: no SpikingConfig field {", ".join(unknown)} (the field names, '
+                f'without "spiking.": {", ".join(sorted(known))})')
+    _init({}, config=config)        # this process resolves config_path as the workers do
+    try:
+        SpikingConfig(**s_over)
+        for kind in kinds:
+            load_configs(config_path(kind), packetizer=p_over, resonator=over)
+    except ConfigError as e:
+        return f'--set/--pset/--sset: {e}'
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; returns 0 (figures are printed, not asserted)."""
     p = argparse.ArgumentParser(description=__doc__,
@@ -927,7 +946,8 @@ def main(argv: list[str] | None = None) -> int:
                         'frames change, so the cache keeps them apart)')
     p.add_argument('--sset', action='append', default=[], metavar='KEY=VALUE',
                    help='override a spiking-emulation setting of the spiking method '
-                        '(SpikingConfig, e.g. precision=float; repeatable)')
+                        '(a SpikingConfig field name, without "spiking.", e.g. precision=float; '
+                        'repeatable; --set, --pset and --sset are checked before any draw runs)')
     p.add_argument('--lag-window', choices=LAG_WINDOWS, default='run',
                    help="where the protocol searches the lag: 'run' (the protocol: the whole "
                         "run) or 'training' (only before the evaluated part)")
@@ -1017,6 +1037,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f'--sensor: {path} has a fixed packetizer downsample; give a config '
                       'with downsample 0 (e.g. --config config/live.yaml)', file=sys.stderr)
                 return 2
+    bad = _check_overrides(args.kinds, config, over, p_over, s_over)
+    if bad:                         # (else every worker fails on it, one draw at a time)
+        print(bad, file=sys.stderr)
+        return 2
     tasks = [(k, s, args.seconds, tuple(args.methods), trace, cache)
              for k in args.kinds for s in seeds]
     what = (f'preset {args.preset} seeds {seeds[0]}..{seeds[-1]}' if args.preset else

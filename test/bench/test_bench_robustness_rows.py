@@ -222,3 +222,19 @@ def test_the_verdict_map_places_each_draw_at_its_scene_rate_and_motion() -> None
         (4e3, 8.0), (5e3, 1.0)]
     assert ax.get_title() == 'rotation, hrn: tracked 1/3'
     plt.close(fig)
+
+
+@pytest.mark.parametrize('args, says', [
+    (['--sset', 'spiking.phase_rounding=stochastic'],
+     'no SpikingConfig field spiking.phase_rounding'),
+    (['--sset', 'phase_rounding=sometimes'], 'phase_rounding'),
+    (['--set', 'cleanup.gama=0.5'], 'unknown CleanupConfig key(s) gama'),
+    (['--pset', 'events_per_frame=-3'], 'events_per_frame'),
+])
+def test_bad_overrides_are_refused_before_any_draw_runs(
+        args: list[str], says: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """A mistyped or invalid override stops the run up front (exit 2, naming it), where each
+    worker would otherwise fail on it one draw at a time and the table read 0 tracked."""
+    assert robustness.main(['--kinds', 'rotation', '--seeds', '10000', *args]) == 2
+    err = capsys.readouterr().err
+    assert says in err, err
