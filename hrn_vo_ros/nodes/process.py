@@ -73,9 +73,10 @@ def _shielded(steps: list[Callable[[], object]]) -> None:
 
 
 def _shut_down(node: Node | None, limit: StopLimit | None = None) -> None:
-    """Arm the stop ``limit``, destroy the node and shut rclpy down, ignoring further stop
-    signals meanwhile."""
-    steps: list[Callable[[], object]] = [] if limit is None else [limit.arm]
+    """Arm the stop ``limit`` and end its watchdog thread, destroy the node and shut rclpy
+    down, ignoring further stop signals meanwhile."""
+    steps: list[Callable[[], object]] = [] if limit is None else [limit.arm,
+                                                                  limit.stop_watching]
     steps += [] if node is None else [node.destroy_node]
     steps.append(rclpy.try_shutdown)
     _shielded(steps)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import faulthandler
 import threading
-import time
 import weakref
 
 from rclpy.context import Context
@@ -37,6 +36,8 @@ class StopLimit:
         self.limit_s = limit_s
         self._lock = threading.Lock()
         self._done = False
+        self._quit = threading.Event()  # the watchdog thread ends (stop_watching)
+        self._thread: threading.Thread | None = None
 
     def watch(self) -> None:
         """Start the thread that arms the limit once the (initialised) default context is no
@@ -44,13 +45,24 @@ class StopLimit:
         collected when ``run`` ends): ``rclpy.ok()`` after a shutdown would make a new default
         context, left alive past ``run``."""
         ref = weakref.ref(rclpy.utilities.get_default_context())
-        threading.Thread(target=self._watch, args=(ref,), name='hrn_vo_ros_stop_limit',
-                         daemon=True).start()
+        self._thread = threading.Thread(target=self._watch, args=(ref,),
+                                        name='hrn_vo_ros_stop_limit', daemon=True)
+        self._thread.start()
 
     def _watch(self, ref: weakref.ref[Context]) -> None:
-        while not self._done and _ok(ref):
-            time.sleep(WATCH_PERIOD_S)
+        while not self._done and not self._quit.is_set() and _ok(ref):
+            self._quit.wait(WATCH_PERIOD_S)
         self.arm()
+
+    def stop_watching(self) -> None:
+        """End the watchdog thread and wait for it (at most a period): the clean-up, which
+        armed the limit itself, then destroys the node and the context with no other thread
+        touching rclpy (a node process was seen to crash in ``destroy_node`` at shutdown with
+        the watchdog thread between two looks at the context)."""
+        self._quit.set()
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=2.0 * WATCH_PERIOD_S)
 
     def arm(self) -> None:
         """From now, ``limit_s`` to the end of ``run`` (again from now if armed)."""

@@ -348,3 +348,41 @@ sys.exit(code)
 """
     proc = start([sys.executable, '-c', script])
     assert 'live []' in finish(proc, time.monotonic())
+
+
+def test_the_clean_up_ends_the_stop_limits_watchdog_first() -> None:
+    """stop_watching ends the watchdog thread within about a period while the context is still
+    ok (the clean-up then destroys the node with no other thread touching rclpy); the clean-up
+    order arms the limit and ends the watchdog before the node goes."""
+    import rclpy
+
+    from hrn_vo_ros.nodes import process
+    from hrn_vo_ros.nodes.stop_limit import StopLimit, WATCH_PERIOD_S
+
+    rclpy.init()
+    limit = StopLimit(60.0)
+    try:
+        limit.watch()
+        thread = limit._thread
+        assert thread is not None and thread.is_alive()
+        t0 = time.monotonic()
+        limit.stop_watching()
+        assert not thread.is_alive() and time.monotonic() - t0 < 2.0 * WATCH_PERIOD_S
+    finally:
+        limit.disarm()
+        rclpy.try_shutdown()
+    calls: list[str] = []
+
+    class Node:
+        def destroy_node(self) -> None:
+            calls.append('destroy')
+
+    class Limit:
+        def arm(self) -> None:
+            calls.append('arm')
+
+        def stop_watching(self) -> None:
+            calls.append('stop_watching')
+
+    process._shut_down(Node(), Limit())       # type: ignore[arg-type]
+    assert calls == ['arm', 'stop_watching', 'destroy']
