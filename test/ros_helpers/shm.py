@@ -2,12 +2,12 @@
 
 Every Fast DDS participant creates a segment ``fastrtps_<id>`` in /dev/shm with a lock file
 ``fastrtps_<id>_el`` that it holds with ``flock`` while it lives. A node killed by a signal
-leaves both behind; over many local test runs hundreds pile up, and a node process has been
-seen to die with SIGSEGV in ``destroy_publisher`` while shutting down among 798 of them (a
-developer machine; a fresh CI machine has none). The rule is Fast DDS's own (``fastdds shm
-clean``, not in the PyPI wheels): a segment whose lock file can be locked is held by no live
-participant. Only this user's per-participant segments older than a minute are touched; the
-port files (``fastrtps_port*``, shared by every participant of a domain) are left alone.
+leaves both behind; over many local test runs hundreds pile up (798 on a developer machine;
+a fresh CI machine has none; a shutdown crash first blamed on them came back without them).
+The rule is Fast DDS's own (``fastdds shm clean``, not in the PyPI wheels): a segment whose
+lock file can be locked is held by no live participant. Only this user's per-participant
+segments older than a minute are touched; the port files (``fastrtps_port*``, shared by every
+participant of a domain) are left alone.
 """
 
 from __future__ import annotations
