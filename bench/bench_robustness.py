@@ -899,16 +899,16 @@ def _sensor_arg(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f'{text!r} is not WIDTH or WIDTHxHEIGHT') from None
 
 
-def _check_overrides(kinds: list[str], config: Path | None, over: dict[str, Any],
-                     p_over: dict[str, Any], s_over: dict[str, Any]) -> str | None:
+def _check_overrides(kinds: list[str], over: dict[str, Any], p_over: dict[str, Any],
+                     s_over: dict[str, Any]) -> str | None:
     """What is wrong with the ``--set``, ``--pset`` and ``--sset`` overrides (None: nothing):
-    each kind's config file must take the first two, :class:`SpikingConfig` the third."""
+    each kind's config file (:func:`config_path`) must take the first two,
+    :class:`SpikingConfig` the third."""
     known = {f.name for f in fields(SpikingConfig)}
     unknown = sorted(set(s_over) - known)
     if unknown:
         return (f'--sset: no SpikingConfig field {", ".join(unknown)} (the field names, '
                 f'without "spiking.": {", ".join(sorted(known))})')
-    _init({}, config=config)        # this process resolves config_path as the workers do
     try:
         SpikingConfig(**s_over)
         for kind in kinds:
@@ -1029,15 +1029,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f'--config: no such file: {args.config}', file=sys.stderr)
         return 2
     config = None if args.config is None else args.config.resolve()
+    _init({}, config=config)        # this process too resolves config_path as the workers do
     if args.sensor is not None:
-        _init({}, config=config)    # this process too resolves config_path as the workers do
         for kind in args.kinds:     # a fixed factor makes frames of another size
             path = config_path(kind)
             if load_configs(path)[0].downsample != 0:
                 print(f'--sensor: {path} has a fixed packetizer downsample; give a config '
                       'with downsample 0 (e.g. --config config/live.yaml)', file=sys.stderr)
                 return 2
-    bad = _check_overrides(args.kinds, config, over, p_over, s_over)
+    bad = _check_overrides(args.kinds, over, p_over, s_over)
     if bad:                         # (else every worker fails on it, one draw at a time)
         print(bad, file=sys.stderr)
         return 2
