@@ -36,7 +36,7 @@ class StopLimit:
         self.limit_s = limit_s
         self._lock = threading.Lock()
         self._done = False
-        self._quit = threading.Event()  # the watchdog thread ends (stop_watching)
+        self._quit = threading.Event()  # the watchdog thread ends (stop_watching, disarm)
         self._thread: threading.Thread | None = None
 
     def watch(self) -> None:
@@ -50,8 +50,9 @@ class StopLimit:
         self._thread.start()
 
     def _watch(self, ref: weakref.ref[Context]) -> None:
-        while not self._done and not self._quit.is_set() and _ok(ref):
-            self._quit.wait(WATCH_PERIOD_S)
+        while _ok(ref):
+            if self._quit.wait(WATCH_PERIOD_S):
+                return                  # the clean-up armed the limit itself, or run ended
         self.arm()
 
     def stop_watching(self) -> None:
@@ -75,6 +76,7 @@ class StopLimit:
         with self._lock:
             self._done = True
             faulthandler.cancel_dump_traceback_later()
+        self._quit.set()
 
 
 def _ok(ref: weakref.ref[Context]) -> bool:
