@@ -162,3 +162,68 @@ def test_throttle_is_per_key() -> None:
     assert not throttle.due('a', 5.0)
     now[0] = 5.0
     assert throttle.due('a', 5.0) and throttle.due('c', 0.0) and throttle.due('c', 0.0)
+
+
+def test_a_rising_minimum_is_followed_at_max_slew_only() -> None:
+    """A low sample that leaves the window raises the minimum from 0 to 5 ms of latency: the
+    offset rises by max_slew x header time from the first packet without that sample (10 us
+    per 10 ms packet here), not at once."""
+    clock = StreamClock(ClockConfig(window_s=1.0, max_slew=1e-3))
+    clock.observe(T0, 0)                            # no latency
+    for k in range(1, 200):                         # 5 ms latency, a packet every 10 ms
+        clock.observe(T0 + k * 10 * MS + 5 * MS, k * 10 * MS)
+        if k == 99:                                 # the first sample is still in the window
+            assert clock.offset_ns == T0
+    # k = 100..199: 100 packets of 10 ms, each adding int(1e-3 x 10 ms) = 10 us
+    assert clock.offset_ns == T0 + 100 * int(1e-3 * 10 * MS)
+
+
+def test_window_and_tolerance_bounds_are_inclusive() -> None:
+    """A sample exactly window_s old is still in the window; a step back by exactly the
+    backwards tolerance is no reset; progress differing by exactly the jump tolerance is none;
+    a pause of both clocks is no jump."""
+    clock = StreamClock(ClockConfig(window_s=1.0))
+    clock.observe(T0, 0)
+    clock.observe(T0 + S, S - 5 * MS)               # header exactly window_s later
+    assert clock.offset_ns == T0
+    clock = StreamClock(ClockConfig(backwards_tolerance_s=0.01))
+    clock.observe(T0, 100 * MS)
+    assert clock.observe(T0 + MS, 90 * MS) is Verdict.BACKWARDS     # 10 ms back: dropped
+    assert clock.observe(T0 - 10 * MS, 101 * MS) is Verdict.OK      # header 10 ms back
+    assert clock.observe(T0 - 10 * MS - 1, 102 * MS) is Verdict.RESET
+    clock = StreamClock(ClockConfig(jump_tolerance_s=1.0))
+    clock.observe(T0, 0)
+    assert clock.observe(T0 + 10 * MS, 10 * MS + S) is Verdict.OK   # exactly 1 s more
+    assert clock.observe(T0 + 20 * MS, 20 * MS + 2 * S + 1) is Verdict.RESET
+    clock = StreamClock()
+    clock.observe(T0, 0)
+    assert clock.observe(T0 + 3 * S, 3 * S) is Verdict.OK           # a 3 s pause of both
+    assert clock.reset_count == 0
+
+
+def test_the_next_packet_must_start_after_the_last_event_seen() -> None:
+    """The events of a packet reach to its last one: a packet starting before that (an
+    overlap within the backwards tolerance) is dropped, one starting at it is fine."""
+    clock = StreamClock()
+    clock.observe(T0, 100 * MS, 200 * MS)
+    assert clock.observe(T0 + MS, 195 * MS, 250 * MS) is Verdict.BACKWARDS
+    assert clock.observe(T0 + 2 * MS, 200 * MS, 260 * MS) is Verdict.OK
+
+
+def test_stamp_checker_bounds() -> None:
+    """Not strict: an equal stamp is fine; a stamp back by exactly the tolerance is dropped,
+    by more it resets."""
+    check = StampChecker(10 * MS)
+    assert check.observe(T0) is Verdict.OK and check.observe(T0) is Verdict.OK
+    assert check.observe(T0 - 10 * MS) is Verdict.BACKWARDS
+    assert check.observe(T0 - 10 * MS - 1) is Verdict.RESET and check.resets == 1
+
+
+def test_throttle_counts_from_the_last_event() -> None:
+    now = [100.0]
+    throttle = Throttle(lambda: now[0])
+    assert throttle.due('a', 5.0)
+    now[0] = 104.9
+    assert not throttle.due('a', 5.0)
+    now[0] = 105.0
+    assert throttle.due('a', 5.0)

@@ -180,3 +180,45 @@ def test_settling_lasts_from_a_relocalisation_until_tracking_or_lost() -> None:
     tr.update(0.1)
     tr.update(0.1)                                 # lost again: not settling
     assert tr.state == 'lost' and not tr.settling
+
+
+def test_quality_exactly_at_the_thresholds() -> None:
+    """The documented comparisons at their bounds: a quality equal to ``degrade`` is not a bad
+    frame (``< degrade``), one equal to ``recover`` is a good one (``>= recover``): it counts
+    towards tracking and, while tracking, moves the reference overlap."""
+    tr = Tracker(TrackingConfig(degrade=0.45, recover=0.6, recover_frames=2, lose_frames=2,
+                                ref_rate=0.5, overlap_floor=0.1))
+    assert states(tr, [0.45, 0.45]) == ['tracking', 'tracking']
+    assert (tr.bad_run, tr.poor_run) == (0, 0)
+    tr.overlap_quality(0.5)                                     # sets ref 0.5
+    tr.overlap_quality(0.3)                                     # this frame's overlap
+    tr.update(0.6)                                              # ref += 0.5 (0.3 - 0.5)
+    assert tr.ref == pytest.approx(0.4)
+    assert states(tr, [0.4, 0.6, 0.6]) == ['degraded', 'degraded', 'tracking']
+
+
+def test_which_frames_are_poor() -> None:
+    """Poor: lost, or degraded with a quality below ``degrade`` (not merely degraded)."""
+    tr = Tracker(TrackingConfig(degrade=0.45, recover=0.6, recover_frames=5, lose_frames=3))
+    assert not tr.poor                                          # tracking
+    tr.update(0.3)
+    assert (tr.state, tr.poor) == ('degraded', True)
+    tr.update(0.5)
+    assert (tr.state, tr.poor) == ('degraded', False)
+    tr.update(0.45)
+    assert (tr.state, tr.poor) == ('degraded', False)
+    states(tr, [0.1, 0.1, 0.1])
+    assert (tr.state, tr.poor) == ('lost', True)
+    tr.update(0.9)
+    assert (tr.state, tr.poor) == ('lost', True)                # lost frames are poor at any q
+
+
+def test_terms_switched_off_and_undefined_ratios() -> None:
+    """A term whose full value is not above its floor is off (1, no division by zero); an
+    undefined distinctiveness ratio gives 1 while the term is on."""
+    assert Tracker(TrackingConfig(sharp_floor=0.3, sharp_full=0.3)).sharpness({'h': 0.0}) == 1.0
+    off = Tracker(TrackingConfig(psr_floor=6.0, psr_full=6.0))
+    assert not off.psr_on and off.psr_term(7.0) == 1.0 and off.psr_term(1.0) == 1.0
+    assert Tracker(TrackingConfig(psr_full=0.0)).psr_term(1.0) == 1.0
+    on = Tracker(TrackingConfig(psr_floor=6.0, psr_full=10.0))
+    assert on.psr_on and on.psr_term(float('nan')) == 1.0 and on.psr_term(8.0) == 0.5
