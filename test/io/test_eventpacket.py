@@ -294,3 +294,142 @@ def test_dvs_cdr_matches_rosbags(frame_id: str) -> None:
     assert arr.events.x.tolist() == [0, 1, 2, 3, 4] and arr.events.y.tolist() == [1, 3, 5, 7, 9]
     assert arr.events.t.tolist() == [i * 1_000_000_007 for i in range(5)]
     assert arr.events.p.tolist() == [0, 1, 0, 1, 0]
+
+
+# ------------------------------------------------------------------ bounds, pinned by hand
+
+INT64_MAX = 2**63 - 1
+
+
+def test_libcaer_equal_timestamps_are_no_rollover() -> None:
+    rec = np.array([(1 << 17 | 1, 5), (2 << 17 | 1, 5), (3 << 17 | 1, 7), (4 << 17 | 1, 6)],
+                   [('d', '<u4'), ('t', '<i4')])
+    ev = eventpacket.decode('libcaer', rec.tobytes(), time_base=TB)
+    assert ev.t.tolist() == [TB + 5000, TB + 5000, TB + 7000, TB + (2**31 + 6) * 1000]
+
+
+def test_libcaer_times_must_stay_within_int64_ns() -> None:
+    """A record time before 0 or past 2^63 - 1 ns is refused; exactly at the bounds is fine."""
+    def rec(ts: int) -> bytes:
+        return np.array([(1 << 17 | 1, ts)], [('d', '<u4'), ('t', '<i4')]).tobytes()
+    assert eventpacket.decode('libcaer', rec(-5), time_base=5000).t.tolist() == [0]
+    with pytest.raises(DecodeError, match='leave 0..'):
+        eventpacket.decode('libcaer', rec(-5), time_base=4999)
+    top = INT64_MAX - 4000
+    assert eventpacket.decode('libcaer', rec(4), time_base=top).t.tolist() == [INT64_MAX]
+    with pytest.raises(DecodeError, match='leave 0..'):
+        eventpacket.decode('libcaer', rec(5), time_base=top)
+    with pytest.raises(DecodeError, match='time_base'):
+        eventpacket.decode('libcaer', rec(0), time_base=-1)
+
+
+def test_time_base_bounds_per_encoding() -> None:
+    """time_base may reach 2^63 - 1 minus the largest offset of the encoding: libcaer_cmp
+    24-bit microsecond offsets (16 777 215 000 ns), mono 32-bit ns offsets."""
+    for enc, span, payload in (('libcaer_cmp', 16_777_215_000, words(0x0000)),
+                               ('mono', 2**32 - 1, b'')):
+        eventpacket.decode(enc, payload, time_base=INT64_MAX - span)
+        with pytest.raises(DecodeError, match='time_base'):
+            eventpacket.decode(enc, payload, time_base=INT64_MAX - span + 1)
+        with pytest.raises(DecodeError, match='time_base'):
+            eventpacket.decode(enc, payload, time_base=-1)
+
+
+def test_sensor_bounds_drop_exactly_the_outside_rows_and_columns() -> None:
+    """x == width and y == height are outside; a width alone (or a height alone) is applied."""
+    stream = words(0x8000, 0x6000, 0x0009, 0x2009, 0x000A, 0x2001, 0x0003, 0x200A)
+    dec = eventpacket.Evt3Decoder(width=10, height=10)
+    ev = dec.decode(stream)
+    assert (ev.x.tolist(), ev.y.tolist(), dec.dropped) == ([9], [9], 2)
+    wide = eventpacket.Evt3Decoder(width=10)
+    assert wide.decode(stream).y.tolist() == [9, 10] and wide.dropped == 1
+    tall = eventpacket.Evt3Decoder(height=10)
+    assert tall.decode(stream).x.tolist() == [9, 10] and tall.dropped == 1
+
+
+def test_evt3_time_needs_a_time_high_before_its_time_low() -> None:
+    """A TIME_LOW before any TIME_HIGH validates nothing, on a new decoder and after reset."""
+    dec = eventpacket.Evt3Decoder()
+    stream = words(0x6001, 0x8001, 0x0003, 0x2004)
+    assert len(dec.decode(stream)) == 0
+    assert dec.decode(words(0x6002, 0x2005)).x.tolist() == [5]      # now a TIME_LOW follows
+    dec.reset()
+    assert len(dec.decode(stream)) == 0
+
+
+def test_evt3_vector_advances_by_8_and_across_packets() -> None:
+    """Each VECT_8 advances base x by 8 and each VECT_12 by 12, also into the next packet."""
+    dec = eventpacket.Evt3Decoder()
+    # TIME_HIGH 1, TIME_LOW 0, ADDR_Y 4, VECT_BASE_X x=100 ON, VECT_8 bit 0, VECT_8 bit 1
+    ev = dec.decode(words(0x8001, 0x6000, 0x0004, 0x3800 | 100, 0x5001, 0x5002))
+    assert ev.x.tolist() == [100, 109]
+    assert dec.decode(words(0x4001)).x.tolist() == [116]            # base 116 carried over
+    assert dec.decode(words(0x5001)).x.tolist() == [128]            # 116 + 12
+
+
+def test_evt3_time_high_backstep_of_10_is_jitter_of_11_a_rollover() -> None:
+    dec = eventpacket.Evt3Decoder()
+    ev = dec.decode(words(0x8000 | 20, 0x6000, 0x0001, 0x2001, 0x8000 | 10, 0x2002))
+    assert ev.t.tolist() == [(20 << 12) * 1000, (10 << 12) * 1000]  # 10 back: jitter
+    dec = eventpacket.Evt3Decoder()
+    ev = dec.decode(words(0x8000 | 20, 0x6000, 0x0001, 0x2001, 0x8000 | 9, 0x2002))
+    assert ev.t.tolist() == [(20 << 12) * 1000, ((1 << 24) + (9 << 12)) * 1000]
+
+
+def test_mono_encoder_bounds() -> None:
+    """Mono words hold y < 2^15, polarity 0/1 and dt <= 2^32 - 1 ns; sorted packets only."""
+    def ev(t: list[int], y: int = 0, p: int = 0) -> EventArray:
+        n = len(t)
+        return EventArray.from_arrays(np.array(t), np.zeros(n), np.full(n, y), np.full(n, p))
+    assert eventpacket.encode_mono(ev([0, 2**32 - 1], y=2**15 - 1, p=1))[1].size == 16
+    for bad in (ev([0, 2**32]), ev([0], y=2**15), ev([0], p=2)):
+        with pytest.raises(DecodeError):
+            eventpacket.encode_mono(bad)
+    ok = ev([0, 2**32 - 1, 2**32 + 5], y=2**15 - 1, p=1)
+    tb, payload = eventpacket.encode_mono_packets(ok, np.array([0, 2, 3]))
+    assert tb.tolist() == [0, 2**32 + 5] and payload.size == 24
+    for bad, bounds in ((ev([0, 2**32]), [0, 2]), (ev([5, 3]), [0, 2]),
+                        (ev([0], y=2**15), [0, 1]), (ev([0], p=2), [0, 1])):
+        with pytest.raises(DecodeError):
+            eventpacket.encode_mono_packets(bad, np.array(bounds))
+
+
+def test_bounds_look_at_every_event_of_a_packet() -> None:
+    """The range checks take the packet's lowest and highest value, not its first or last."""
+    def rec(*ts: int) -> bytes:
+        return np.array([(1 << 17 | 1, t) for t in ts], [('d', '<u4'), ('t', '<i4')]).tobytes()
+    with pytest.raises(DecodeError, match='leave 0..'):
+        eventpacket.decode('libcaer', rec(-5, 3), time_base=4999)
+    with pytest.raises(DecodeError, match='leave 0..'):
+        eventpacket.decode('libcaer', rec(4, 6), time_base=INT64_MAX - 5000)
+    n = np.zeros(2)
+    with pytest.raises(DecodeError):
+        eventpacket.encode_mono(EventArray.from_arrays(np.array([5, 20]), n, n, n), time_base=10)
+    for y, p in (([0, 2**15], [0, 0]), ([0, 0], [0, 2])):
+        ev = EventArray.from_arrays(np.array([0, 1]), n, np.array(y), np.array(p))
+        with pytest.raises(DecodeError, match='y < 32768'):
+            eventpacket.encode_mono(ev)
+        with pytest.raises(DecodeError, match='y < 32768'):
+            eventpacket.encode_mono_packets(ev, np.array([0, 2]))
+
+
+def test_libcaer_cmp_vector_base_after_vectors_and_across_packets() -> None:
+    """A VECT_BASE_Y after VECT_8 words sets y afresh; a packet ending in VECT_8 hands y + 8
+    on to the next one."""
+    dec = eventpacket.PacketDecoder()
+    # TIME_HIGH 0, TIME_LOW 1, ADDR_X 3, VECT_BASE_Y 10 ON, VECT_8 bit 0, VECT_BASE_Y 50 ON,
+    # VECT_8 bit 0 -> y 10, 50; then the next packet's VECT_8 bit 1 -> y 58 + 1
+    ev = dec.decode('libcaer_cmp', words(0x0000, 0x1001, 0x2003, 0x480A, 0x5001, 0x4832,
+                                         0x5001), time_base=TB)
+    assert ev.y.tolist() == [10, 50] and ev.x.tolist() == [3, 3]
+    assert dec.decode('libcaer_cmp', words(0x5002), time_base=TB).y.tolist() == [59]
+
+
+def test_trigger_arrays_concatenate_in_order() -> None:
+    a = eventpacket.TriggerArray(np.array([1, 2]), np.array([6, 6], np.uint8),
+                                 np.array([1, 0], np.uint8))
+    b = eventpacket.TriggerArray(np.array([3]), np.array([1], np.uint8), np.array([1], np.uint8))
+    both = eventpacket.TriggerArray.concatenate([a, b])
+    assert (both.t.tolist(), both.id.tolist(), both.polarity.tolist()) == (
+        [1, 2, 3], [6, 6, 1], [1, 0, 1])
+    assert len(eventpacket.TriggerArray.concatenate([])) == 0
