@@ -509,3 +509,28 @@ def test_time_capped_packets_hold_for_any_stream_and_split(
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         got += [f.n_events for f in pk.push(ev[a:b])]
     assert got == np.diff(ends, prepend=0).tolist()
+
+
+def test_sensor_bounds_and_frame_usability_by_hand() -> None:
+    """y == sensor_height is outside (checked over every event of the batch); a frame is
+    usable with 1 .. max_fill x pixels on, and refused with a NaN."""
+    from hrn_vo_ros.core.events.frames import check_event_frame
+    from hrn_vo_ros.errors import TrackingError
+    pk = Packetizer(paper_framing(sensor_width=240, sensor_height=180))
+    for y in ([0, 180], [180, 0]):
+        bad = EventArray.from_arrays(np.array([1, 2]), np.array([3, 3]), np.array(y),
+                                     np.array([0, 0]))
+        with pytest.raises(DatasetError, match='outside the 240x180 sensor'):
+            pk.push(bad)
+    img = np.zeros((10, 10), np.uint8)
+    assert not check_event_frame(img, 10, 10, 0.3, 'resonator')[1]   # nothing on
+    img.flat[:30] = 1
+    assert check_event_frame(img, 10, 10, 0.3, 'resonator')[1]       # exactly 30 %
+    img.flat[30] = 1
+    assert not check_event_frame(img, 10, 10, 0.3, 'resonator')[1]
+    f = np.zeros((10, 10))
+    f[2, 3] = np.nan
+    with pytest.raises(TrackingError, match='non-finite'):
+        check_event_frame(f, 10, 10, 0.3, 'resonator')
+    f[2, 3] = 1.0
+    assert check_event_frame(f, 10, 10, 0.3, 'resonator')[1]

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np
@@ -274,3 +276,30 @@ def test_isolated_count_equals_the_pairwise_reference(data: st.DataObject) -> No
     assert probe.rate_hz == pytest.approx(want * 1e9 / (win * w * h))
     assert probe.total_hz == pytest.approx(count * 1e9 / (win * w * h))
     assert probe.share == pytest.approx(want / count if count else 0.0)
+
+
+def test_a_reset_stream_waits_for_its_measurement_again(rng: np.random.Generator) -> None:
+    """finish() ends the waiting of its stream only: after reset() a new stream's frames wait
+    for their own measurement; a held packet of exactly events_per_frame comes out at
+    finish()."""
+    ev = scene(20.0, rng)
+    short = ev[: int(np.searchsorted(ev.t, S // 2 - 1))]
+    pk = Packetizer(cfg(10.0))
+    pk.push(short)
+    assert len(pk.finish()) >= 10
+    pk.reset()
+    assert pk.push(short) == []                   # waiting again
+    pk = Packetizer(replace(cfg(10.0), max_frame_ms=0.0))   # packets by count only
+    assert pk.push(short[:400]) == [] and pk.pending == 400
+    assert len(pk.finish()) == 1
+
+
+def test_the_noisy_threshold_holds_at_the_floors_themselves() -> None:
+    """Noisy at an isolated rate and share equal to noise_floor_hz and noise_share."""
+    from types import SimpleNamespace
+
+    from hrn_vo_ros.core.events.frames import _noisy
+    c = cfg(10.0, share=0.5)
+    assert _noisy(c, SimpleNamespace(rate_hz=10.0, share=0.5))     # type: ignore[arg-type]
+    assert not _noisy(c, SimpleNamespace(rate_hz=9.99, share=0.5))  # type: ignore[arg-type]
+    assert not _noisy(c, SimpleNamespace(rate_hz=10.0, share=0.49))  # type: ignore[arg-type]
