@@ -50,6 +50,14 @@ def test_chart_binding_is_the_first_order_one_at_the_centre() -> None:
             assert got[k] == pytest.approx(want[k], abs=1e-7), (k, got, want)
 
 
+def test_chart_binding_of_a_large_roll_at_the_centre() -> None:
+    """A 0.5 rad (28.6°) roll about the optical axis, at the chart's centre: r = -0.5 / unit,
+    as the first-order binding (exact for a pure roll), h and v 0."""
+    got = chart_shift_of_rotation(np.array([0.0, 0.0, 0.5]), 80.0, 0.0, 0.0, 0.3, 0.05)
+    assert got['r'] == pytest.approx(-10.0, abs=1e-9)
+    assert got['h'] == pytest.approx(0.0, abs=1e-9) and got['v'] == pytest.approx(0.0, abs=1e-9)
+
+
 def test_chart_binding_follows_a_loop_of_pans_and_tilts() -> None:
     """Pan 30°, tilt 30°, pan back, tilt back, in 0.1° steps of the gyro: the camera does not
     come back to its first view (the loop turns it about its axis and leaves the optical axis
@@ -115,6 +123,9 @@ def test_bias_estimate_converges_in_closed_loop_and_is_bounded() -> None:
     off.update(np.ones(3), 0.01)
     assert not off.enabled and est.enabled
     assert off.updates == 0 and not off.b.any()
+    still = GyroBias(memory_s=10.0, prior_s=1.0, max_rad_s=0.1)
+    still.update(np.ones(3), 0.0)                           # a frame of no duration: nothing
+    assert still.updates == 0 and not still.b.any()
 
 
 @pytest.mark.parametrize('bias', [(0.04, -0.03, 0.05), (0.0, 0.0, 0.0)])

@@ -69,6 +69,8 @@ def test_on_the_sphere_chart_a_new_map_composes_as_a_camera_rotation() -> None:
     # pure rolls add and stay continuous past half a turn; pans about one axis add
     p.origin = {'h': 0.0, 'v': 0.0, 'r': 3.0, 'z': 0.0}
     assert p.compose({'h': 0.0, 'v': 0.0, 'r': 0.5, 'z': 0.0})['r'] == pytest.approx(3.5)
+    p.origin = {'h': 0.0, 'v': 0.0, 'r': 0.1, 'z': 0.0}        # a roll of 2 rad on the map
+    assert p.compose({'h': 0.0, 'v': 0.0, 'r': 2.0, 'z': 0.0})['r'] == pytest.approx(2.1)
     p.origin = {'h': f * 0.3, 'v': 0.0, 'r': 0.0, 'z': 0.0}
     assert p.compose({'h': f * 0.2, 'v': 0.0, 'r': 0.0, 'z': 0.0})['h'] == pytest.approx(f * 0.5)
 
