@@ -108,6 +108,18 @@ def test_velocity_prediction_tracks_faster_motion_more_precisely() -> None:
     assert e_pred[0] < 0.3 and e_pred[1] < 0.3 and e_pred[2] < np.deg2rad(1.0), e_pred
 
 
+def test_the_velocity_prediction_shifts_by_the_set_fraction_of_the_velocity() -> None:
+    """predict_velocity k: the states move by k x the smoothed change per frame, and that
+    shift (what the frame's prior pose adds) is returned; nothing before a velocity exists."""
+    rng = np.random.default_rng(2)
+    hrn = make({'cleanup': {'predict_velocity': 0.5}})
+    hrn.step(event_frame(random_scene(rng), (0.0, 0.0, 0.0, 0.0), rng), 0)
+    hrn._velocity = None
+    assert hrn._predict_velocity() == {}
+    hrn._velocity = {'h': 2.0, 'v': -1.0, 'r': 0.5}
+    assert hrn._predict_velocity() == {'h': 1.0, 'v': -0.5, 'r': 0.25}
+
+
 def test_imu_prediction_moves_the_states_by_the_gyro() -> None:
     """With γ = 0 the cleanup does not move the states, so only the prediction does."""
     rng = np.random.default_rng(0)
@@ -450,14 +462,18 @@ def test_kernel_sigma_encodes_each_pixel_as_a_gaussian_blob() -> None:
 
 
 @pytest.mark.parametrize('gate', [0.0, 5.0])
-def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float) -> None:
+@pytest.mark.parametrize('tracking', [True, False])
+def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float, tracking: bool) -> None:
     """One frame from a far pose (a glitch) while the gyro says 'still': with the gate the
-    readout keeps the prediction and the map is not updated; without it the readout jumps."""
+    readout keeps the prediction and the map is not updated (also without the tracking
+    layer's own quality gate, and with the gate as the only check: no correction limit);
+    without it the readout jumps."""
     rng = np.random.default_rng(4)
     scene = random_scene(rng)
     hrn = make({'map': {'block_iterations': 0},
                 'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
-                'focal_px': FOCAL, 'imu': {'gate_deg': gate}})
+                'tracking': {'enabled': tracking},
+                'focal_px': FOCAL, 'imu': {'gate_deg': gate, 'max_correction_deg_s': 0.0}})
     still = np.zeros(3)
     for i in range(30):
         hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i, gyro_delta=still)
@@ -492,12 +508,13 @@ def test_imu_correction_limit_cuts_the_readout_to_the_rate_times_the_frame_inter
             last = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 10_000_000,
                             gyro_delta=still)
         assert hrn.limited_frames == 0
-        hs = [last.h] + [hrn.step(event_frame(scene, (1.0, 0.0, 0.0, 0.0), rng),
-                                  (30 + i) * 10_000_000, gyro_delta=still).h
-                         for i in range(12)]
+        est = [hrn.step(event_frame(scene, (1.0, 0.0, 0.0, 0.0), rng), (30 + i) * 10_000_000,
+                        gyro_delta=still) for i in range(12)]
+        hs = [last.h] + [e.h for e in est]
         if limit:
             assert np.diff(hs[:4]) == pytest.approx([step] * 3, abs=0.005)
             assert hrn.limited_frames == 3
+            assert all(e.map_updated for e in est[:3])      # a cut readout is no rejection
         else:
             assert hs[1] == pytest.approx(1.0, abs=0.1)
             assert hrn.limited_frames == 0
