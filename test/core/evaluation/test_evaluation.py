@@ -445,3 +445,34 @@ def test_motion_between_frames_of_a_known_trajectory() -> None:
     late = np.array([tg[-1] - 10_000_000, tg[-1] + 500_000_000], np.int64)
     assert motion_between(gt, late)[0] == pytest.approx(1.0, abs=1e-9)
     assert all(np.isnan(x) for x in motion_between(gt, tf[:1]))
+
+
+def test_umeyama_refuses_too_few_or_mismatched_points() -> None:
+    """d + 1 points are enough in d dimensions (a triangle in the plane); d are not, nor a
+    target of another shape."""
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+    s, R, t = umeyama(tri, 3.0 * tri + [1.0, -1.0])
+    assert s == pytest.approx(3.0) and np.allclose(R, np.eye(2)) and np.allclose(t, [1.0, -1.0])
+    with pytest.raises(DatasetError, match='at least 3 matching points'):
+        umeyama(tri[:2], tri[:2])
+    with pytest.raises(DatasetError, match='at least 3 matching points'):
+        umeyama(tri, tri[:, :1])
+
+
+def test_the_lag_search_needs_an_overlap_of_four_max_lags_and_skips_constant_signals() -> None:
+    """The overlap runs from the later start to the earlier end: 2 s + one grid step is
+    enough for a 0.5 s lag search, less is refused; a constant signal pair correlates 0."""
+    from hrn_vo_ros.core.evaluation.lag import lag_search
+    t_gt = np.linspace(0.0, 10.0, 4001)
+    gt = [np.sin(2.0 * t_gt), np.ones_like(t_gt)]
+    for start, ok in ((8.0 - 1.0 / 400.0, True), (8.01, False)):
+        t_est = np.linspace(start, 10.0, 801)
+        est = [np.sin(2.0 * t_est), np.ones_like(t_est)]
+        if ok:
+            lag, corrs = lag_search(t_est, est, t_gt, gt, rate_hz=400.0, max_lag_s=0.5,
+                                    squared=True)
+            assert lag == pytest.approx(0.0, abs=1e-6)
+            assert corrs[0] == pytest.approx(1.0) and corrs[1] == 0.0
+        else:
+            with pytest.raises(DatasetError, match='overlap for 1.99 s only'):
+                lag_search(t_est, est, t_gt, gt, rate_hz=400.0, max_lag_s=0.5, squared=True)
