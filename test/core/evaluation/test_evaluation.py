@@ -476,3 +476,44 @@ def test_the_lag_search_needs_an_overlap_of_four_max_lags_and_skips_constant_sig
         else:
             with pytest.raises(DatasetError, match='overlap for 1.99 s only'):
                 lag_search(t_est, est, t_gt, gt, rate_hz=400.0, max_lag_s=0.5, squared=True)
+
+
+def test_relative_errors_by_hand() -> None:
+    """Ground truth along x at 0, 1, 1.5, 2.9 and 4 m, sub-trajectories of L = 2 m: only the
+    pair (1 m, 2.9 m) ends within 0.2 L of d + L (from 0 the nearest end is 1.5 m, 0.5 m off;
+    from 1.5 m it is 4 m, 0.5 m off; from 2.9 m, 4 m is 0.9 m off). An estimate turned by 60°
+    there errs by the chord 2 sin 30° x 1.9 m = 1.9 m, 95 % of L; one stretched by 10 %, 9.5 %."""
+    x = np.array([0.0, 1.0, 1.5, 2.9, 4.0])
+    p = np.stack([x, 0 * x, 0 * x], axis=1)
+    eye = np.repeat(np.eye(3)[None], len(x), axis=0)
+    c, s = np.cos(np.pi / 3), np.sin(np.pi / 3)
+    turned = np.repeat(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])[None], len(x), 0)
+    assert relative_position_errors(p, eye, p, turned, (2.0,))[2.0] == pytest.approx([95.0])
+    assert relative_position_errors(p, eye, 1.1 * p, eye, (2.0,))[2.0] == pytest.approx([9.5])
+    # L = 2.5 m on 0, 1, 3, 3.5 m: from 0 the end 3 m is exactly 0.2 L off (kept); from 1 m
+    # the last pose, 3.5 m, is exact; stretched by 10 %: 0.1 x 3 / 2.5 and 0.1 x 2.5 / 2.5
+    x = np.array([0.0, 1.0, 3.0, 3.5])
+    p = np.stack([x, 0 * x, 0 * x], axis=1)
+    eye = eye[:4]
+    assert relative_position_errors(p, eye, 1.1 * p, eye, (2.5,))[2.5] == pytest.approx(
+        [12.0, 10.0])
+
+
+def test_per_axis_rotation_errors_in_degrees() -> None:
+    """An estimate exact until 75 % of the run, then 0.6 px off in h and 0.003 rad off in
+    roll: h maps to (pan, tilt) by diag(1, -1) Rot(-0.5) / 60 (SIM), so pan is off by
+    0.01 cos 0.5 rad = 0.5028°, tilt by 0.01 sin 0.5 rad = 0.2747°, roll by 0.1719°; the
+    plotted series are in degrees."""
+    gt, est = _rotation_case()
+    late = est.t * 1e-9 > 0.75 * SECONDS
+    off = EstimateSeries(est.t, est.h + 0.6 * late, est.v, est.r + 0.003 * late)
+    res = evaluate(gt, off, 'rotation')
+    assert res.metrics['median_pan_deg'] == pytest.approx(0.5028, abs=0.002)
+    assert res.metrics['median_tilt_deg'] == pytest.approx(0.2747, abs=0.002)
+    assert res.metrics['median_roll_deg'] == pytest.approx(0.1719, abs=0.002)
+    ref = evaluate(gt, est, 'rotation')
+    pan, _, _ = _relative_angles(gt, est.t * 1e-9)
+    i = len(pan) // 2
+    assert ref.series.gt[:, 0] == pytest.approx(np.degrees(
+        np.interp(ref.series.t_s, est.t * 1e-9 - gt.t[0] * 1e-9, pan)), abs=0.01)
+    assert ref.series.est[i, 0] == pytest.approx(ref.series.gt[i, 0], abs=0.01)
