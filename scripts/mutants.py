@@ -65,11 +65,15 @@ def mutants(source: str) -> list[Mutant]:
     """Every mutant of ``source``, in source order (module code only, see the docstring)."""
     lines = source.splitlines(keepends=True)
     out = []
+    prev = ''
     for tok in tokenize.generate_tokens(io.StringIO(source).readline):
         line, col = tok.start
+        before, prev = prev, tok.string
         if (line > len(lines) or tok.start[0] != tok.end[0]
                 or lines[line - 1].lstrip().startswith('@')):
             continue
+        if tok.string in ('*', '/') and before in ('(', ','):
+            continue                    # a signature's bare * or /, or *args: no operator
         if tok.type in (tokenize.OP, tokenize.NAME) and tok.string in SWAPS:
             out += [Mutant(line, col, tok.string, new) for new in SWAPS[tok.string]]
         elif tok.type == tokenize.NUMBER and tok.string.isdigit():

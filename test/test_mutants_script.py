@@ -26,7 +26,7 @@ def test_mutants_of_code_only_by_hand() -> None:
     or decorators."""
     src = ('"""a < b"""\n'
            '@dec(x=True)\n'
-           'def f(a, b):\n'
+           'def f(a, *, b):\n'
            '    return a <= 10 and not max(a, b) == "c - d"  # e > f\n')
     got = [(m.line, m.col, m.old, m.new) for m in _module().mutants(src)]
     assert got == [(4, 13, '<=', '<'), (4, 16, '10', '11'), (4, 19, 'and', 'or'),

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.core.odometry.odometry import (
+    camera_pose,
     mount_transform,
     OdometryConfig,
     OdomPose,
@@ -111,6 +112,9 @@ def test_config_rejects_bad_values() -> None:
         OdometryConfig(motion_model='spiral')
     with pytest.raises(ConfigError, match='focal_length_px'):
         OdometryConfig(focal_length_px=0.0)
+    for xyz, rpy in (((0.0, 0.0), (0.0, 0.0, 0.0)), ((0.0, 0.0, 0.0), (0.0,) * 4)):
+        with pytest.raises(ConfigError, match='3 values each'):
+            OdometryConfig(mount_xyz=xyz, mount_rpy=rpy)
 
 
 def test_planar_model_in_base_link_and_camera() -> None:
@@ -191,3 +195,38 @@ def test_twist_covariance_and_no_time_between() -> None:
     same = twist_between(b, b, 7.0)
     np.testing.assert_array_equal(same.linear, 0.0)
     np.testing.assert_array_equal(same.covariance, np.eye(6) * 7.0)
+
+
+@pytest.mark.parametrize('axis', [(0.2, 0.9, -0.3), (-0.7, 0.1, 0.7), (0.1, -0.2, 0.97),
+                                  (1.0, 1.0, 1.0), (0.9, 0.3, 0.1)])
+@pytest.mark.parametrize('angle', [2.1, 2.9, math.pi, -2.5])
+def test_quaternion_of_large_turns_about_oblique_axes(axis: tuple[float, float, float],
+                                                      angle: float) -> None:
+    """Turns past 90° (trace <= 0: every branch of Shepperd's method, with off-diagonal
+    terms) against scipy's conversion, an independent implementation; w >= 0."""
+    from scipy.spatial.transform import Rotation
+    rv = np.asarray(axis) / np.linalg.norm(axis) * angle
+    R = Rotation.from_rotvec(rv).as_matrix()
+    q = quat_from_matrix(R)
+    ref = Rotation.from_rotvec(rv).as_quat()          # (x, y, z, w)
+    ref = -ref if ref[3] < 0 else ref
+    if abs(ref[3]) < 1e-12:                           # a half turn: both signs are w = 0
+        ref = ref * np.sign(np.dot(ref, q))
+    np.testing.assert_allclose(q, ref, atol=1e-12)
+    assert q[3] >= 0.0
+
+
+def test_covariances_of_each_motion_model_by_hand() -> None:
+    """sigma_px 0.5, scale 2 (so 1 px), f 80, full confidence, h 30, v -20: pinhole
+    d pan / dh = f / (f^2 + (2 h)^2) = 80 / 10000, d tilt / dv = 80 / 8000; equidistant
+    1 / f; planar at 2 m: 1 px x 2 m / 80 px."""
+    kw = {'focal_length_px': 80.0, 'scale': 2.0, 'sigma_px': 0.5, 'sigma_roll_rad': 0.02}
+    _, _, cov = camera_pose(OdometryConfig(**kw), 30.0, -20.0, 0.1, None, FULL)
+    assert np.diag(cov)[3:] == pytest.approx([0.01 ** 2, 0.008 ** 2, 0.02 ** 2], rel=1e-12)
+    _, _, cov = camera_pose(OdometryConfig(projection='equidistant', **kw), 30.0, -20.0, 0.1,
+                            None, FULL)
+    assert np.diag(cov)[3:5] == pytest.approx([0.0125 ** 2] * 2, rel=1e-12)
+    _, _, cov = camera_pose(OdometryConfig(motion_model='planar', depth_m=2.0, **kw), 30.0,
+                            -20.0, 0.1, None, FULL)
+    assert np.diag(cov)[[0, 1, 5]] == pytest.approx([0.025 ** 2, 0.025 ** 2, 0.02 ** 2],
+                                                     rel=1e-12)
