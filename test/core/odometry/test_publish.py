@@ -103,6 +103,7 @@ def test_static_frames_and_the_child_frame() -> None:
     frames = static_frames(ODO, R_ci, base='base', camera='cam', imu='imu')
     assert [(p, c) for p, c, _, _ in frames] == [('base', 'cam'), ('cam', 'imu')]
     np.testing.assert_array_equal(frames[1][2], np.eye(3)[[1, 0, 2]])
+    np.testing.assert_array_equal(frames[1][3], np.zeros(3))       # the IMU at the camera
     assert child_frame_id(ODO, 'base', 'cam') == 'base'
     cam = OdometryConfig(child_frame='camera')
     assert child_frame_id(cam, 'base', 'cam') == 'cam'
@@ -125,6 +126,25 @@ def test_gyro_gate_holds_frames_until_covered_bounded_and_forced() -> None:
     assert [t for t, _ in gate.drain(force=True)] == [40, 50] and not gate.stalled(9.0, 0.5)
     old = gate.gyro
     assert gate.new_gyro() is gate.gyro and gate.gyro is not old and len(gate.gyro) == 0
+
+
+def test_gyro_gate_stalls_on_its_oldest_frame_and_the_imu_and_takes_a_new_rotation() -> None:
+    """Stalled: frames wait and the oldest of them and the IMU are both more than the
+    timeout old (strictly); a new gyro may take a new IMU -> camera rotation."""
+    image = np.zeros((2, 2), np.uint8)
+    gate = GyroGate(tuple(float(v) for v in np.eye(3).ravel()), max_samples=100,
+                    max_pending=5)
+    gate.add_gyro(0, np.zeros(3), 1.0)
+    gate.add(10, image, 2.0)
+    gate.add(20, image, 2.9)
+    assert not gate.stalled(2.5, 0.5) and gate.stalled(3.2, 0.5)   # the oldest is 1.2 s old
+    gate.add_gyro(5, np.zeros(3), 2.8)
+    assert not gate.stalled(3.2, 0.5)                              # the IMU moved 0.4 s ago
+    gate.new_gyro(tuple(float(v) for v in np.eye(3)[[1, 0, 2]].ravel()))
+    gate.add_gyro(0, np.array([1.0, 0.0, 0.0]), 4.0)
+    gate.add_gyro(10**9, np.array([1.0, 0.0, 0.0]), 4.0)
+    assert gate.gyro.increment(0) is None
+    np.testing.assert_allclose(gate.gyro.increment(10**9), [0.0, 1.0, 0.0])   # x -> y
 
 
 def test_check_texts() -> None:
