@@ -136,3 +136,40 @@ def test_max_samples_drops_the_oldest() -> None:
     assert len(buf) == 4
     np.testing.assert_allclose(buf.angle_at(0), [0, 0, 60.0])      # clamped at the oldest, 60
     np.testing.assert_allclose(buf.angle_at(90), [0, 0, 90.0])      # the integral is kept
+
+
+def test_batches_must_start_after_the_last_sample() -> None:
+    """A batch's first time equal to the last sample's is refused; steps of 1 ns are fine."""
+    buf = GyroIntegrator()
+    buf.extend(np.array([10, 20]), np.zeros((2, 3)))
+    with pytest.raises(DatasetError, match='does not increase'):
+        buf.extend(np.array([20, 30]), np.zeros((2, 3)))
+    buf.extend(np.array([30, 31]), np.zeros((2, 3)))
+    assert len(buf) == 4
+
+
+def test_coverage_max_samples_and_trim_bounds_by_hand() -> None:
+    """A sample exactly at a frame's time covers it; max_samples keeps exactly that many;
+    trim keeps the sample at or before its time and at least two."""
+    buf = GyroIntegrator(max_samples=5)
+    assert not buf.covers(0)
+    for k in range(5):                                    # 0 .. 40 ns at 1 rad per ns
+        buf.add(k * 10, np.array([0.0, 0.0, 1e9]))
+    assert buf.covers(40) and not buf.covers(41) and len(buf) == 5
+    np.testing.assert_allclose(buf.angle_at(0), [0, 0, 0.0])       # nothing dropped yet
+    buf.trim(20)                                          # 20, 30, 40 remain
+    assert len(buf) == 3
+    np.testing.assert_allclose(buf.angle_at(25), [0, 0, 25.0])
+    buf.trim(35)                                          # 30, 40 remain
+    assert len(buf) == 2
+    np.testing.assert_allclose(buf.angle_at(35), [0, 0, 35.0])
+    buf.trim(1000)                                        # never fewer than two
+    assert len(buf) == 2
+    three = GyroIntegrator()
+    for k in range(3):
+        three.add(k * 10, np.array([0.0, 0.0, 1e9]))
+    three.trim(1000)
+    assert len(three) == 2
+    one = GyroIntegrator()
+    one.add(10, np.zeros(3))
+    assert one.covers(10)
