@@ -217,3 +217,62 @@ def test_the_start_up_line_says_what_the_stream_does() -> None:
     assert text == (f'{RECT.events_per_frame} events per frame, sensor size from the event '
                     f'packets, rectify {RECT.rectify} (no calib.* parameters: events are held '
                     'until a camera_info arrives on /cam/info), events reliable')
+
+
+def test_packet_bounds_and_equal_timestamps() -> None:
+    """Equal timestamps inside a packet and a packet starting at the previous one's last
+    event are fine; y == sensor_height is outside wherever it sits in the packet."""
+    ev = EventArray.from_arrays(np.array([5, 5, 5, 7]), np.array([1, 2, 3, 4]),
+                                np.array([0, 29, 1, 2]), np.ones(4))
+    assert packet_problem(ev, CFG, None) is None
+    assert packet_problem(ev, CFG, 5) is None
+    assert packet_problem(ev, CFG, 6) == 'time_backwards'
+    tall = EventArray.from_arrays(np.array([5, 6]), np.array([1, 2]), np.array([30, 0]),
+                                  np.ones(2))
+    assert packet_problem(tall, CFG, None) == 'out_of_sensor'
+
+
+def test_a_packet_overlapping_the_last_event_of_the_previous_is_dropped() -> None:
+    """The clock keeps each packet's last event: the next one must not start before it."""
+    stream = PacketStream(CFG)
+    assert push(stream, 5 * S).accepted                       # events 5 s .. 5 s + 990 us
+    out = push(stream, 5 * S + 985_000)                       # starts 5 us before that
+    assert kinds(out) == [('reject', 'time_backwards')]
+    assert push(stream, 5 * S + 990_000).accepted             # at it: fine
+
+
+def test_non_square_sensor_from_messages_and_calibration() -> None:
+    """A 40x30 sensor known from the packets stays 40x30 in the packetizer built on the
+    calibration; a calibration before any packet gives the sensor size; zero sizes say
+    nothing; a later other size drops the calibration that no longer fits."""
+    stream = PacketStream(RECT, sensor_size='messages')
+    push(stream, 5 * S, size=(40, 30))
+    stream.calibrate(CALIB)
+    assert stream.packetizer is not None
+    assert (stream.packetizer.cfg.sensor_width, stream.packetizer.cfg.sensor_height) == (40, 30)
+    first = PacketStream(RECT, sensor_size='messages')
+    first.calibrate(CALIB)
+    assert first.sensor == (40, 30)
+    fixed = PacketStream(RECT)
+    fixed.calibrate(CALIB)
+    assert fixed.sensor is None
+    assert kinds(push(PacketStream(CFG, sensor_size='messages'), 5 * S, size=(0, 30))) == []
+    text = push(PacketStream(CFG, sensor_size='messages'), 5 * S, size=(40, 30)).notes[0].text
+    assert '(downsample 1);' in text and 'needs downsample 0.4167 here, or 0: auto' in text
+    assert stream.reconfigure(paper_framing(events_per_frame=30, sensor_width=40,
+                                            sensor_height=30, downsample=1.0,
+                                            rectify='pinhole'))
+    assert stream.packetizer is not None and stream.packetizer.cfg.calib.fx == 30.0  # kept
+    out = push(stream, 6 * S, size=(50, 30))
+    assert ('warn', 'camera_info_size') in kinds(out) and stream.calib is None
+
+
+def test_held_events_up_to_the_limit_and_diagnostics_before_any_packetizer() -> None:
+    stream = PacketStream(RECT)
+    for k in range(2):
+        push(stream, 5 * S + k * 10 * MS, wait=200)
+    assert stream.held == 200 and stream.counts['dropped_waiting_for_camera_info'] == 0
+    values = dict(stream.diagnostic_values('0.0', 0))
+    assert values['pending_events'] == 0 and values['events_outside_frame'] == 0
+    assert values['frames_by_time'] == 0 and values['events_capped'] == 0
+    assert values['events_denoised'] == 0 and values['noisy_threshold'] is False
