@@ -19,7 +19,7 @@ from hrn_vo_ros.core.odometry.geometry import (
 )
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import write_sequence
-from hrn_vo_ros.io.estimates import read_estimates, write_estimates
+from hrn_vo_ros.io.estimates import read_estimates, write_estimates, write_tum
 
 
 def test_round_trip_is_exact(tmp_path: Path) -> None:
@@ -41,6 +41,7 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
     ('t,h,v,r\n0.1,1,2\n', 'columns, expected 4', 2),
     ('t,h,v,r\n0.1,1,x,3\n', "'x' is not a number", 2),
     ('t,h,v,r\n0.2,1,2,3\n0.1,1,2,3\n', 'increase', 3),
+    ('t,h,v,r\n0.2,1,2,3\n0.2,1,2,4\n', 'increase', 3),
     ('t,h,v,r\nabc,1,2,3\n', 'bad time', 2),
     ('', 'empty', None),
 ])
@@ -236,3 +237,15 @@ def test_quality_state_columns_round_trip(tmp_path: Path) -> None:
     assert ef.quality is not None and list(ef.quality) == [1.0, 0.5, 0.1]
     old = write_estimates(tmp_path / 'old.csv', est)
     assert read_estimate_file(old).state is None
+
+
+def test_tum_rows_by_hand(tmp_path: Path) -> None:
+    """The rotation model at the map's origin: no translation, a roll r about the optical axis
+    is the quaternion (0, 0, sin r/2, cos r/2); stamps in seconds with nine decimals."""
+    from hrn_vo_ros.core.odometry.odometry import OdometryConfig
+    est = EstimateSeries(np.array([1_500_000_000, 2_000_000_007]), np.zeros(2), np.zeros(2),
+                         np.array([0.0, np.pi / 2]))
+    lines = write_tum(tmp_path / 'e.tum', est, OdometryConfig()).read_text().splitlines()
+    assert lines[0].startswith('# timestamp tx ty tz qx qy qz qw')
+    assert lines[1:] == ['1.500000000 0 0 0 0 0 0 1',
+                         '2.000000007 0 0 0 0 0 0.707106781 0.707106781']
