@@ -88,3 +88,27 @@ def test_newest_bin_is_held_until_complete() -> None:
 def test_bad_settings_are_refused() -> None:
     with pytest.raises(ConfigError, match='positive window'):
         NeighbourFilter(10, 8, 0)
+    for w, h in ((0, 8), (10, 0), (-1, -1)):
+        with pytest.raises(ConfigError, match='positive window and sensor size'):
+            NeighbourFilter(w, h, MS)
+    NeighbourFilter(1, 1, 1)                     # the smallest sensor and bin
+
+
+def test_bins_processed_in_chunks_equal_the_brute_force_definition(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Many bins at once are decided a few at a time (occupancy images of at most _CHUNK
+    bytes): with chunks of 1, 2 and 3 bins (a chunk boundary between every pair of bins) the
+    kept events equal the definition, event by event."""
+    rng = np.random.default_rng(4)
+    n = 150
+    t = np.sort(rng.integers(0, 60 * MS, n))
+    rows = [(int(a), int(b), int(c)) for a, b, c in
+            zip(t, rng.integers(0, 10, n), rng.integers(0, 8, n), strict=True)]
+    ref = [(tk, xk, yk) for tk, xk, yk in rows
+           if any(abs(x - xk) <= 1 and abs(y - yk) <= 1 and (x, y) != (xk, yk)
+                  and tk // (5 * MS) - 1 <= t2 // (5 * MS) <= tk // (5 * MS)
+                  for t2, x, y in rows)]
+    assert 0 < len(ref) < n
+    for bins in (1, 2, 3):
+        monkeypatch.setattr(NeighbourFilter, '_CHUNK', 12 * 10 * bins)   # (10 + 2) x (8 + 2)
+        assert run(rows) == ref
