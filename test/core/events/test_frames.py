@@ -344,6 +344,23 @@ def test_undistort_inverts_distort() -> None:
     np.testing.assert_allclose(y2, y, atol=1e-9)
 
 
+def test_plumb_bob_distortion_by_hand() -> None:
+    """Each coefficient of (k1, k2, p1, p2, k3) alone at the normalised point (0.5, 0.2)
+    (r^2 = 0.29), f = 100 at the origin: x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y +
+    p2 (r^2 + 2 x^2), y_d likewise; undistorting gives the point back."""
+    r2 = 0.29
+    cases = [((0.1, 0, 0, 0, 0), 0.5 * (1 + 0.1 * r2), 0.2 * (1 + 0.1 * r2)),
+             ((0, 0.1, 0, 0, 0), 0.5 * (1 + 0.1 * r2 ** 2), 0.2 * (1 + 0.1 * r2 ** 2)),
+             ((0, 0, 0.01, 0, 0), 0.5 + 0.02 * 0.1, 0.2 + 0.01 * (r2 + 0.08)),
+             ((0, 0, 0, 0.01, 0), 0.5 + 0.01 * (r2 + 0.5), 0.2 + 0.02 * 0.1),
+             ((0, 0, 0, 0, 0.1), 0.5 * (1 + 0.1 * r2 ** 3), 0.2 * (1 + 0.1 * r2 ** 3))]
+    for dist, xd, yd in cases:
+        u, v = distort_points(100.0, 100.0, 0.0, 0.0, dist, 0.5, 0.2)
+        assert (float(u), float(v)) == pytest.approx((100 * xd, 100 * yd), abs=1e-12)
+        x, y = undistort_points(100.0, 100.0, 0.0, 0.0, dist, u, v)
+        assert (float(x), float(y)) == pytest.approx((0.5, 0.2), abs=1e-9)
+
+
 def test_equidistant_radius_is_focal_times_ray_angle() -> None:
     xr, yr = rectified_pixels('equidistant', *DAVIS_ARGS)
     # the ray of every sensor pixel (undistorted, normalised) and its angle from the axis
