@@ -39,10 +39,13 @@ def test_transforms_equal_numpy(backend: str, dtype: type) -> None:
 def test_real_pair_and_overwrite(backend: str) -> None:
     rng = np.random.default_rng(2)
     r = rng.normal(size=(16, 10))
+    x = rng.normal(size=(8, 6)) + 1j * rng.normal(size=(8, 6))
     spec = hfft.rfft2(r)
     np.testing.assert_allclose(spec, np.fft.rfft2(r), atol=1e-10)
     np.testing.assert_allclose(hfft.irfft2(spec * 2.0, (16, 10)), 2.0 * r, atol=1e-10)
-    x = rng.normal(size=(8, 6)) + 1j * rng.normal(size=(8, 6))
+    frame = (r > 0).astype(np.uint8)                          # an event frame as it comes
+    np.testing.assert_allclose(hfft.rfft2(frame), np.fft.rfft2(frame), atol=1e-10)
+    np.testing.assert_allclose(hfft.ifft(x[0]), np.fft.ifft(x[0]), atol=1e-10)  # default axis
     want = np.fft.fft2(x)
     tmp = x.copy()
     np.testing.assert_allclose(hfft.fft2(tmp, overwrite_x=True), want, atol=1e-10)
