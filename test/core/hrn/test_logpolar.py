@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -13,8 +15,10 @@ from hrn_vo_ros.core.hrn.logpolar import (
     dense_lambdas_dft,
     LogPolarConfig,
     LogPolarTransform,
+    lp_radii,
     lp_to_cart_matrix,
     make_geometry,
+    ring_weights,
 )
 from hrn_vo_ros.errors import ConfigError
 
@@ -113,3 +117,36 @@ def test_canvas_scale_sizes_the_canvas_from_the_frame(
         canvas: tuple[int, int]) -> None:
     g = make_geometry(*frame, *sizes, LogPolarConfig(), scale)
     assert (g.canvas_width, g.canvas_height) == canvas
+
+
+def test_the_grid_and_both_resamplings_by_hand() -> None:
+    """96x72 frame on a 128x96 canvas, 192 x 36 samples from r_min 4 to the half-diagonal
+    60: offset (16, 12), centre (63.5, 47.5), rings 4 e^(j ln(15) / 35); bilinear resampling
+    reproduces a linear ramp exactly, so T of the canvas's x and y coordinates gives each
+    sample's position, and T' of the ring and angle indices gives ln(rho / 4) / step and
+    theta / (2 pi / 192) at every canvas pixel between the inner and outer ring (away from the
+    seam at 2 pi); ring weights (rho / 60)^0.5."""
+    g = make_geometry(96, 72, 128, 96, LogPolarConfig(ring_weight=0.5))
+    assert g.offset == (16, 12) and g.centre == (63.5, 47.5) and g.r_max == 60.0
+    assert g.d_rho == pytest.approx(math.log(15.0) / 35)
+    rho = lp_radii(g)
+    assert rho[0] == pytest.approx(4.0) and rho[-1] == pytest.approx(60.0)
+    assert ring_weights(g) == pytest.approx(np.sqrt(rho / 60.0))
+    yy, xx = np.mgrid[0:96, 0:128].astype(np.float64)
+    T = cart_to_lp_matrix(g)
+    theta = 2.0 * np.pi * np.arange(192) / 192
+    px = 63.5 + rho[:, None] * np.cos(theta)[None, :]
+    py = 47.5 + rho[:, None] * np.sin(theta)[None, :]
+    inner = (px >= 0) & (px <= 126) & (py >= 0) & (py <= 94)    # all four taps on the canvas
+    assert inner.mean() > 0.8
+    np.testing.assert_allclose((T @ xx.ravel()).reshape(36, 192)[inner], px[inner], atol=1e-9)
+    np.testing.assert_allclose((T @ yy.ravel()).reshape(36, 192)[inner], py[inner], atol=1e-9)
+    ring = np.repeat(np.arange(36, dtype=np.float64), 192)
+    r = np.hypot(xx - 63.5, yy - 47.5).ravel()
+    band = (r >= 4.0) & (r <= 60.0)
+    Tr = lp_to_cart_matrix(g)
+    np.testing.assert_allclose((Tr @ ring)[band], np.log(r[band] / 4.0) / g.d_rho, atol=1e-9)
+    angle = np.tile(np.arange(192, dtype=np.float64), 36)     # the angle index, k
+    kf = np.mod(np.arctan2(yy - 47.5, xx - 63.5), 2.0 * np.pi).ravel() / (2.0 * np.pi / 192)
+    away = band & (kf < 191.0)                                # not across the 2 pi seam
+    np.testing.assert_allclose((Tr @ angle)[away], kf[away], atol=1e-9)
