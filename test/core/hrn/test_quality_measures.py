@@ -86,3 +86,23 @@ def test_peak_to_sidelobe_equals_its_definition(exclude: int) -> None:
         assert got == pytest.approx(_psr_reference(np.conj(m), t, w, exclude), rel=1e-9)
         assert (got > 8.0) if high else (got < 4.0)
     assert peak_to_sidelobe(np.conj(m), np.zeros_like(m), w, 1) == 0.0
+
+
+def test_population_readout_by_hand() -> None:
+    """Eq. 7 around the peak: weights 1, 3, 1 at entries 2, 3, 4 give index 3 and spread
+    sqrt(2/5) (the 2 at entry 6 lies outside the window); at the start of a periodic book the
+    window wraps (1 at entry -1, i.e. K - 1, 3 at 0, 1 at 1: index 0), of a bounded one it is
+    cut (3 and 1: index 0.25), at the end likewise (6.75); negative weights count as 0, and an
+    all-negative window gives the peak's own index."""
+    from hrn_vo_ros.core.hrn.shared import population_readout
+    sim = np.array([0.0, -1.0, 1.0, 3.0, 1.0, 0.0, 2.0, 0.0])     # entry 6: outside
+    idx, spread, peak = population_readout(sim, 2, False)
+    assert (idx, peak) == (pytest.approx(3.0), 3.0)
+    assert spread == pytest.approx(math.sqrt(2.0 / 5.0))
+    end = np.array([3.0, 1.0, -2.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+    assert population_readout(end, 2, True)[0] == pytest.approx(0.0)   # 1 at -1 and at 1
+    assert population_readout(end, 2, False)[0] == pytest.approx(0.25)  # cut at 0: 3, 1
+    assert population_readout(end[::-1].copy(), 2, False)[0] == pytest.approx(6.75)
+    low = np.full(8, -1.0)
+    low[5] = -0.5
+    assert population_readout(low, 2, False) == (5.0, 0.0, -0.5)
