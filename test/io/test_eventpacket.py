@@ -433,3 +433,12 @@ def test_trigger_arrays_concatenate_in_order() -> None:
     assert (both.t.tolist(), both.id.tolist(), both.polarity.tolist()) == (
         [1, 2, 3], [6, 6, 1], [1, 0, 1])
     assert len(eventpacket.TriggerArray.concatenate([])) == 0
+
+
+def test_reset_forgets_the_libcaer_cmp_addresses() -> None:
+    """After reset() a vector word without its own base starts from x 0, y 0, OFF."""
+    dec = eventpacket.PacketDecoder()
+    dec.decode('libcaer_cmp', words(0x0001, 0x1001, 0x2009, 0x4814), time_base=TB)
+    dec.reset()
+    ev = dec.decode('libcaer_cmp', words(0x5001), time_base=TB)
+    assert (ev.x.tolist(), ev.y.tolist(), ev.p.tolist()) == ([0], [0], [0])
