@@ -108,6 +108,31 @@ def test_velocity_prediction_tracks_faster_motion_more_precisely() -> None:
     assert e_pred[0] < 0.3 and e_pred[1] < 0.3 and e_pred[2] < np.deg2rad(1.0), e_pred
 
 
+def test_the_correction_limit_grows_with_the_gyros_own_turn() -> None:
+    """The gyro reports a 0.0125 rad (0.7162°) pan the camera does not make: the readout pulls
+    back towards the still view, cut to max_correction_deg_s x dt + fraction x gyro turn
+    (20°/s x 10 ms + 0.5 x 0.7162° = 0.5581°, against 0.2° with fraction 0). The same frames
+    and readout in both runs, so the cut moves differ by exactly 0.5581 / 0.2."""
+    moves = []
+    for fraction in (0.0, 0.5):
+        rng = np.random.default_rng(4)
+        scene = random_scene(rng)
+        hrn = make({'map': {'block_iterations': 0, 'mu1': 0.985, 'mu2': 0.0075},
+                    'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
+                    'focal_px': FOCAL, 'imu': {'gate_deg': 5.0, 'max_correction_deg_s': 20.0,
+                                               'max_correction_fraction': fraction}})
+        for i in range(30):
+            last = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 10_000_000,
+                            gyro_delta=np.zeros(3))
+        pan = gyro_between(np.zeros(3), np.array([1.0, 0.0, 0.0]))     # 1 px at f = 80
+        est = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 300_000_000,
+                       gyro_delta=pan)
+        assert hrn.limited_frames == 1 and hrn.rejected_frames == 0
+        moves.append(est.h - (last.h + 1.0))          # the cut pull-back from the prediction
+    turn = np.degrees(0.0125)
+    assert moves[1] / moves[0] == pytest.approx((0.2 + 0.5 * turn) / 0.2, rel=2e-3)
+
+
 def test_the_velocity_prediction_shifts_by_the_set_fraction_of_the_velocity() -> None:
     """predict_velocity k: the states move by k x the smoothed change per frame, and that
     shift (what the frame's prior pose adds) is returned; nothing before a velocity exists."""
