@@ -219,6 +219,26 @@ def test_tracking_errors_are_rejects_and_focal_warnings_notes() -> None:
     assert extra == [] and [(p, c) for p, c, _, _ in frames] == [('b', 'c')]
 
 
+def test_invalid_frames_and_both_clocks_resets_are_counted() -> None:
+    """A frame the estimator could not use (valid False) counts once in invalid_frames; the
+    diagnostics' clock_resets add the frames' and the IMU's resets."""
+    class Blank(Scripted):
+        def step(self, image: Any, t_ns: int, *, gyro_delta: Any = None) -> Estimate:
+            est = super().step(image, t_ns, gyro_delta=gyro_delta)
+            return Estimate(est.t_ns, est.h, est.v, est.r, est.z, valid=len(self.steps) != 2,
+                            confidence=est.confidence, quality=est.quality, state=est.state)
+    lo = live(Blank())
+    s = settings(imu=True)
+    list(lo.imu(10**9, np.zeros(3), s))
+    list(lo.imu(10**8, np.zeros(3), s))                    # an IMU reset
+    list(lo.imu(2 * 10**8, np.zeros(3), s))
+    for t in (1, 2, 3):
+        list(lo.frame(t * 10**8 + 10**7, IMAGE, settings()))
+    list(lo.frame(10**7, IMAGE, settings()))                 # frames back by 0.3 s: a reset
+    assert lo.counts['estimates_out'] == 4 and lo.counts['invalid_frames'] == 1
+    assert dict(lo.diagnostic_values('1.0', 0, 0))['clock_resets'] == 2
+
+
 def test_diagnostic_values_keys() -> None:
     lo = live(Scripted())
     list(lo.frame(10**9, IMAGE, settings()))
