@@ -21,6 +21,7 @@ from hrn_vo_ros.core.hrn.shared import (
     refine_exponent,
     state_gamma,
 )
+from hrn_vo_ros.core.odometry.estimate import Estimate
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.errors import ConfigError, TrackingError
 
@@ -106,31 +107,6 @@ def test_velocity_prediction_tracks_faster_motion_more_precisely() -> None:
     e_pred = np.median(np.abs(pred[20:, :3] - traj[20:, :3]), axis=0)
     assert np.all(e_pred < 0.7 * e_plain), (e_plain, e_pred)
     assert e_pred[0] < 0.3 and e_pred[1] < 0.3 and e_pred[2] < np.deg2rad(1.0), e_pred
-
-
-def test_the_correction_limit_grows_with_the_gyros_own_turn() -> None:
-    """The gyro reports a 0.0125 rad (0.7162°) pan the camera does not make: the readout pulls
-    back towards the still view, cut to max_correction_deg_s x dt + fraction x gyro turn
-    (20°/s x 10 ms + 0.5 x 0.7162° = 0.5581°, against 0.2° with fraction 0). The same frames
-    and readout in both runs, so the cut moves differ by exactly 0.5581 / 0.2."""
-    moves = []
-    for fraction in (0.0, 0.5):
-        rng = np.random.default_rng(4)
-        scene = random_scene(rng)
-        hrn = make({'map': {'block_iterations': 0, 'mu1': 0.985, 'mu2': 0.0075},
-                    'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
-                    'focal_px': FOCAL, 'imu': {'gate_deg': 5.0, 'max_correction_deg_s': 20.0,
-                                               'max_correction_fraction': fraction}})
-        for i in range(30):
-            last = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 10_000_000,
-                            gyro_delta=np.zeros(3))
-        pan = gyro_between(np.zeros(3), np.array([1.0, 0.0, 0.0]))     # 1 px at f = 80
-        est = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 300_000_000,
-                       gyro_delta=pan)
-        assert hrn.limited_frames == 1 and hrn.rejected_frames == 0
-        moves.append(est.h - (last.h + 1.0))          # the cut pull-back from the prediction
-    turn = np.degrees(0.0125)
-    assert moves[1] / moves[0] == pytest.approx((0.2 + 0.5 * turn) / 0.2, rel=2e-3)
 
 
 def test_the_velocity_prediction_shifts_by_the_set_fraction_of_the_velocity() -> None:
@@ -515,6 +491,20 @@ def test_imu_gate_rejects_a_frame_that_contradicts_the_gyro(gate: float, trackin
         assert abs(after.h) < 0.5 and abs(after.r) < 0.02
 
 
+def still_with_gyro(imu: dict) -> tuple[HRN, np.ndarray, np.random.Generator, Estimate]:
+    """A network with the gyro settings ``imu`` (gate 5°) after 30 frames of a still camera
+    10 ms apart with a still gyro: (network, scene, generator, last estimate)."""
+    rng = np.random.default_rng(4)
+    scene = random_scene(rng)
+    hrn = make({'map': {'block_iterations': 0, 'mu1': 0.985, 'mu2': 0.0075},
+                'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
+                'focal_px': FOCAL, 'imu': {'gate_deg': 5.0, **imu}})
+    for i in range(30):
+        last = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 10_000_000,
+                        gyro_delta=np.zeros(3))
+    return hrn, scene, rng, last
+
+
 def test_imu_correction_limit_cuts_the_readout_to_the_rate_times_the_frame_interval() -> None:
     """The camera steps 1 px right while the gyro says 'still': with
     ``max_correction_deg_s`` 20 and frames 10 ms apart, each readout moves at most 0.2 deg,
@@ -522,19 +512,10 @@ def test_imu_correction_limit_cuts_the_readout_to_the_rate_times_the_frame_inter
     such steps; without the limit it jumps in one frame."""
     step = FOCAL * np.tan(np.radians(0.2))
     for limit in (0.0, 20.0):
-        rng = np.random.default_rng(4)
-        scene = random_scene(rng)
-        hrn = make({'map': {'block_iterations': 0, 'mu1': 0.985, 'mu2': 0.0075},
-                    'cleanup': {'gamma': 0.9, 'iterations_per_frame': 2},
-                    'focal_px': FOCAL, 'imu': {'gate_deg': 5.0,
-                                               'max_correction_deg_s': limit}})
-        still = np.zeros(3)
-        for i in range(30):
-            last = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), i * 10_000_000,
-                            gyro_delta=still)
+        hrn, scene, rng, last = still_with_gyro({'max_correction_deg_s': limit})
         assert hrn.limited_frames == 0
         est = [hrn.step(event_frame(scene, (1.0, 0.0, 0.0, 0.0), rng), (30 + i) * 10_000_000,
-                        gyro_delta=still) for i in range(12)]
+                        gyro_delta=np.zeros(3)) for i in range(12)]
         hs = [last.h] + [e.h for e in est]
         if limit:
             assert np.diff(hs[:4]) == pytest.approx([step] * 3, abs=0.005)
@@ -544,3 +525,21 @@ def test_imu_correction_limit_cuts_the_readout_to_the_rate_times_the_frame_inter
             assert hs[1] == pytest.approx(1.0, abs=0.1)
             assert hrn.limited_frames == 0
         assert hs[-1] == pytest.approx(1.0, abs=0.08)
+
+
+def test_the_correction_limit_grows_with_the_gyros_own_turn() -> None:
+    """The gyro reports a 0.0125 rad (0.7162°) pan the camera does not make: the readout pulls
+    back towards the still view, cut to max_correction_deg_s x dt + fraction x gyro turn
+    (20°/s x 10 ms + 0.5 x 0.7162° = 0.5581°, against 0.2° with fraction 0). The same frames
+    and readout in both runs, so the cut moves differ by exactly 0.5581 / 0.2."""
+    moves = []
+    for fraction in (0.0, 0.5):
+        hrn, scene, rng, last = still_with_gyro({'max_correction_deg_s': 20.0,
+                                                 'max_correction_fraction': fraction})
+        pan = gyro_between(np.zeros(3), np.array([1.0, 0.0, 0.0]))     # 1 px at f = 80
+        est = hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 300_000_000,
+                       gyro_delta=pan)
+        assert hrn.limited_frames == 1 and hrn.rejected_frames == 0
+        moves.append(est.h - (last.h + 1.0))          # the cut pull-back from the prediction
+    turn = np.degrees(0.0125)
+    assert moves[1] / moves[0] == pytest.approx((0.2 + 0.5 * turn) / 0.2, rel=2e-3)
