@@ -28,10 +28,11 @@ def test_mutants_of_code_only_by_hand() -> None:
            '@dec(x=True)\n'
            'def f(a, *, b):\n'
            '    return a <= 10 and not max(a, b) == "c - d"  # e > f\n')
-    got = [(m.line, m.col, m.old, m.new) for m in _module().mutants(src)]
+    found = _module().mutants(src)
+    got = [(m.line, m.col, m.old, m.new) for m in found]
     assert got == [(4, 13, '<=', '<'), (4, 16, '10', '11'), (4, 19, 'and', 'or'),
                    (4, 23, 'not', ''), (4, 27, 'max', 'min'), (4, 37, '==', '!=')]
-    m = _module().mutants(src)[2]
+    m = found[2]
     assert m.apply(src.splitlines(keepends=True))[3] == \
         '    return a <= 10 or not max(a, b) == "c - d"  # e > f\n'
 

@@ -17,6 +17,7 @@ from hrn_vo_ros.core.odometry.geometry import (
     matrix_to_quat,
     matrix_to_swing_twist,
 )
+from hrn_vo_ros.core.odometry.odometry import OdometryConfig
 from hrn_vo_ros.errors import DatasetError
 from hrn_vo_ros.io.ecd import write_sequence
 from hrn_vo_ros.io.estimates import read_estimates, write_estimates, write_tum
@@ -242,7 +243,6 @@ def test_quality_state_columns_round_trip(tmp_path: Path) -> None:
 def test_tum_rows_by_hand(tmp_path: Path) -> None:
     """The rotation model at the map's origin: no translation, a roll r about the optical axis
     is the quaternion (0, 0, sin r/2, cos r/2); stamps in seconds with nine decimals."""
-    from hrn_vo_ros.core.odometry.odometry import OdometryConfig
     est = EstimateSeries(np.array([1_500_000_000, 2_000_000_007]), np.zeros(2), np.zeros(2),
                          np.array([0.0, np.pi / 2]))
     lines = write_tum(tmp_path / 'e.tum', est, OdometryConfig()).read_text().splitlines()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hrn_vo_ros.core.evaluation.lag import lag_search
 from hrn_vo_ros.core.evaluation.metrics import (
     arm_metrics,
     KIND_METRICS,
@@ -462,7 +463,6 @@ def test_umeyama_refuses_too_few_or_mismatched_points() -> None:
 def test_the_lag_search_needs_an_overlap_of_four_max_lags_and_skips_constant_signals() -> None:
     """The overlap runs from the later start to the earlier end: 2 s + one grid step is
     enough for a 0.5 s lag search, less is refused; a constant signal pair correlates 0."""
-    from hrn_vo_ros.core.evaluation.lag import lag_search
     t_gt = np.linspace(0.0, 10.0, 4001)
     gt = [np.sin(2.0 * t_gt), np.ones_like(t_gt)]
     for start, ok in ((8.0 - 1.0 / 400.0, True), (8.01, False)):

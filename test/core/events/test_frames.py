@@ -13,6 +13,7 @@ import pytest
 from hrn_vo_ros.core.events.arrays import EventArray
 from hrn_vo_ros.core.events.camera import distort_points, rectified_pixels, undistort_points
 from hrn_vo_ros.core.events.frames import (
+    check_event_frame,
     downsample_lut,
     EventFrame,
     frames_from_events,
@@ -28,7 +29,7 @@ from hrn_vo_ros.core.events.packet_config import (
     with_calibration,
 )
 from hrn_vo_ros.core.events.sequence import CameraCalibration
-from hrn_vo_ros.errors import ConfigError, DatasetError
+from hrn_vo_ros.errors import ConfigError, DatasetError, TrackingError
 
 
 def random_events(rng: np.random.Generator, n: int, w: int = 240, h: int = 180) -> EventArray:
@@ -531,8 +532,6 @@ def test_time_capped_packets_hold_for_any_stream_and_split(
 def test_sensor_bounds_and_frame_usability_by_hand() -> None:
     """y == sensor_height is outside (checked over every event of the batch); a frame is
     usable with 1 .. max_fill x pixels on, and refused with a NaN."""
-    from hrn_vo_ros.core.events.frames import check_event_frame
-    from hrn_vo_ros.errors import TrackingError
     pk = Packetizer(paper_framing(sensor_width=240, sensor_height=180))
     for y in ([0, 180], [180, 0]):
         bad = EventArray.from_arrays(np.array([1, 2]), np.array([3, 3]), np.array(y),

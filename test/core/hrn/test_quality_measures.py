@@ -11,6 +11,7 @@ import pytest
 from hrn_vo_ros.core.hrn.shared import (
     highpass_weights,
     peak_to_sidelobe,
+    population_readout,
     spectral_overlap,
     weighted_overlap,
 )
@@ -94,7 +95,6 @@ def test_population_readout_by_hand() -> None:
     window wraps (1 at entry -1, i.e. K - 1, 3 at 0, 1 at 1: index 0), of a bounded one it is
     cut (3 and 1: index 0.25), at the end likewise (6.75); negative weights count as 0, and an
     all-negative window gives the peak's own index."""
-    from hrn_vo_ros.core.hrn.shared import population_readout
     sim = np.array([0.0, -1.0, 1.0, 3.0, 1.0, 0.0, 2.0, 0.0])     # entry 6: outside
     idx, spread, peak = population_readout(sim, 2, False)
     assert (idx, peak) == (pytest.approx(3.0), 3.0)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from hrn_vo_ros.core.odometry.geometry import (
     compose_swing_twist,
@@ -65,7 +66,6 @@ def test_the_float_forms_equal_the_array_forms(seed: int) -> None:
 def _scipy_rotations(n: int) -> np.ndarray:
     """n random rotations (scipy, seeded) and the half turns about x, y, z and an oblique
     axis (every branch of a matrix-to-quaternion conversion, w = 0 included)."""
-    from scipy.spatial.transform import Rotation
     half = Rotation.from_rotvec(np.pi * np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0],
                                                   [0.6, 0.0, 0.8]]))
     return np.concatenate([Rotation.random(n, random_state=3).as_matrix(), half.as_matrix()])
@@ -74,7 +74,6 @@ def _scipy_rotations(n: int) -> np.ndarray:
 def test_elementary_and_euler_rotations_against_scipy() -> None:
     """rot_x/y/z and Ry(pan) Rx(tilt) Rz(roll) (intrinsic YXZ) against scipy's conversions,
     an independent implementation; the inverse within tilt in (-90°, 90°)."""
-    from scipy.spatial.transform import Rotation
     rng = np.random.default_rng(5)
     a = rng.uniform(-3.0, 3.0, 20)
     for f, axis in ((rot_x, 'x'), (rot_y, 'y'), (rot_z, 'z')):
@@ -90,7 +89,6 @@ def test_elementary_and_euler_rotations_against_scipy() -> None:
 def test_quaternions_against_scipy_in_every_branch() -> None:
     """matrix_to_quat (w >= 0) and quat_to_matrix against scipy on 200 random rotations and
     four half turns, in batches of any leading shape; angles and logs likewise."""
-    from scipy.spatial.transform import Rotation
     R = _scipy_rotations(200)
     q = matrix_to_quat(R)
     ref = Rotation.from_matrix(R).as_quat()

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from hrn_vo_ros.core.odometry.odometry import (
     camera_pose,
@@ -204,7 +205,6 @@ def test_quaternion_of_large_turns_about_oblique_axes(axis: tuple[float, float, 
                                                       angle: float) -> None:
     """Turns past 90° (trace <= 0: every branch of Shepperd's method, with off-diagonal
     terms) against scipy's conversion, an independent implementation; w >= 0."""
-    from scipy.spatial.transform import Rotation
     rv = np.asarray(axis) / np.linalg.norm(axis) * angle
     R = Rotation.from_rotvec(rv).as_matrix()
     q = quat_from_matrix(R)
