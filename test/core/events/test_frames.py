@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import replace
-import time
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -312,17 +311,6 @@ def test_bad_inputs_raise_with_actionable_messages(rng: np.random.Generator) -> 
         paper_framing(events_per_frame=0)
     with pytest.raises(ConfigError, match='downsample = 0.5: set a factor >= 1, or 0'):
         paper_framing(downsample=0.5)
-
-
-def test_packetizing_rate_is_far_above_real_time(rng: np.random.Generator) -> None:
-    """A loose in-suite bound (the benchmark measures the 20 M events/s target)."""
-    ev = random_events(rng, 2_000_000)
-    pk = Packetizer(paper_framing())
-    t0 = time.perf_counter()
-    for i in range(0, len(ev), 100_000):
-        pk.push(ev[i:i + 100_000])
-    rate = len(ev) / (time.perf_counter() - t0)
-    assert rate > 3e6
 
 
 # ------------------------------------------------------------------------------------------
