@@ -145,6 +145,10 @@ def rot_z(a: float) -> NDArray[np.float64]:
 def quat_from_matrix(R: NDArray[np.float64]) -> NDArray[np.float64]:
     """Unit quaternion (x, y, z, w) with w ≥ 0 of a rotation matrix (Shepperd's method).
 
+    The one-matrix twin of :func:`geometry.matrix_to_quat`, kept for the per-frame path: in
+    plain floats it takes about 5 µs against 35-40 µs for the batched function on one matrix
+    (measured 2026-12-08); the tests hold both to scipy's conversion.
+
     Shapes:
         R: (3, 3) -> (4,)
     """
