@@ -59,6 +59,10 @@ class DenseEngine:
                   'r': np.broadcast_to(small['r'].phases[None, :], (nr, nt)).ravel(),
                   'z': np.broadcast_to(fhrr.dft_phases(nr)[:, None], (nr, nt)).ravel()}
             self.periodic = True
+            # (grid shape, axis summed) of each factor's marginal: h varies along x, v along
+            # y, r along θ, z along ρ
+            self._marginal = {'h': ((hc, wc), 0), 'v': ((hc, wc), 1), 'r': ((nr, nt), 0),
+                              'z': ((nr, nt), 1)}
         else:
             n = cfg.codebook.dim or g.n_cart
             ph = {'h': fhrr.random_phases(n, rng), 'v': fhrr.random_phases(n, rng),
@@ -139,10 +143,22 @@ class DenseEngine:
     def _clean(self, name: str, u: NDArray[np.complexfloating]) -> NDArray[np.complexfloating]:
         self.inputs[name] = u
         c = np.real(self.XH[name] @ u).astype(np.float64)
-        bound = self.col_norm[name] * float(np.linalg.norm(u))
+        bound = self._bound(name, u)
         self.drive[name] = c / bound if bound > 0 else np.zeros_like(c)
         out = self.X[name] @ cleanup_weights(c, self.cfg.cleanup, bound).astype(self.dtype)
         return fhrr.phasor(out.astype(np.complex128)).astype(self.dtype)
+
+    def _bound(self, name: str, u: NDArray[np.complexfloating]) -> float:
+        """The bound ``|x_j| |a|`` of ``Re X† u``, from the factor's marginal ``a`` for DFT
+        codebooks: ``Re X† u = Re X₁† a`` with the 1-D codebook ``X₁``, the input the fast
+        engine cleans, so the drive (``Re X† u`` over the bound) is the same normalised
+        similarity in both engines; ``|x_j| |u|`` for random codebooks, which have no
+        marginal."""
+        if not self.periodic:
+            return self.col_norm[name] * float(np.linalg.norm(u))
+        shape, axis = self._marginal[name]
+        a = np.asarray(u).reshape(shape).sum(axis=axis)
+        return math.sqrt(a.shape[0]) * float(np.linalg.norm(a))
 
     def iterate(self, S: NDArray[np.complexfloating]) -> None:
         st = self.state
