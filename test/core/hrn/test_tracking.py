@@ -481,6 +481,37 @@ def test_shift_decode_of_the_relocalisation_is_the_codebook_product() -> None:
     assert corr[i, j] == pytest.approx(96 * 128)
 
 
+def test_relocalisation_search_finds_a_known_view_and_scores_by_its_definition() -> None:
+    """The map of the view at pose 0; a view at (h, v, roll) = (5, -3, 90°) is searched over
+    8 rolls. The best candidate is the 90° one at the shift that undoes the view (the engine's
+    units: -h, -v entries and -roll in roll entries, 192 per turn; 1 px for the rotation about
+    the canvas centre), its score is the half-whitened phase correlation written out (DC
+    removed, peak over the bound), and the list is best first, one candidate per roll."""
+    rng = np.random.default_rng(0)
+    scene = random_scene(rng)
+    hrn = make({'map': {'learn': False}, 'tracking': {'relocalise': False}})
+    hrn.step(event_frame(scene, (0.0, 0.0, 0.0, 0.0), rng), 0)
+    eng = hrn._engine
+    img = event_frame(scene, (5.0, -3.0, np.pi / 2, 0.0), rng)
+    S = eng.encode(hrn._place(img.astype(np.float64)))
+    found = eng.relocalise(S, 8, 0.0, 8)
+    score, point = found[0]
+    assert point['r'] == -48.0 and abs(point['h'] + 5) <= 1 and abs(point['v'] - 3) <= 1
+    assert sorted({p['r'] for _, p in found}) == [-96.0, -72.0, -48.0, -24.0, 0.0, 24.0, 48.0,
+                                                  72.0]
+    scores = [s for s, _ in found]
+    assert scores == sorted(scores, reverse=True) and scores[1] < 0.5 * score
+    t0 = eng._to_map(S, {'h': 0.0, 'v': 0.0, 'r': -48.0, 'z': 0.0}).astype(np.complex128)
+    c = t0 * np.conj(eng.m.astype(np.complex128))
+    c[0, 0] = 0.0
+    mag = np.sqrt(np.abs(c))
+    corr = np.real(np.fft.ifft2(np.divide(c, mag, out=np.zeros_like(c), where=mag > 0))) * c.size
+    i, j = np.unravel_index(int(np.argmax(corr)), corr.shape)
+    assert score == pytest.approx(corr[i, j] / mag.sum(), rel=1e-6)
+    assert (j - 128 * (j >= 64), i - 96 * (i >= 48)) == (point['h'], point['v'])
+    assert eng.relocalise(S, 8, 0.0, 3) == found[:3]
+
+
 def test_poor_degraded_frames_hold_the_last_tracked_pose() -> None:
     """A frame of low quality in the degraded state outputs the last tracked pose, not its
     readout (a glitch of a few frames must not throw the odometry about)."""
