@@ -17,7 +17,6 @@ from hrn_vo_ros.core.hrn.shared import (
     map_block,
     map_block_ns,
     map_mu1,
-    population_readout,
     refine_exponent,
     state_gamma,
 )
@@ -339,7 +338,7 @@ def test_bad_inputs_and_configs() -> None:
         paper_config({'readout': {'refine_input': 'h,x'}})
 
 
-def test_cleanup_nonlinearities_and_population_readout() -> None:
+def test_cleanup_nonlinearities() -> None:
     c = np.array([-1.0, 0.5, 2.0, 1.0])
     np.testing.assert_allclose(cleanup_weights(c, CleanupConfig(nonlinearity='identity')), c)
     np.testing.assert_allclose(cleanup_weights(c, CleanupConfig(nonlinearity='relu')),
@@ -349,12 +348,6 @@ def test_cleanup_nonlinearities_and_population_readout() -> None:
     e = cleanup_weights(c, CleanupConfig(nonlinearity='exp', beta=2.0))
     np.testing.assert_allclose(e, np.exp(2.0 * (c / 2.0 - 1.0)))
     np.testing.assert_allclose(cleanup_weights(np.full(3, 1e-20), CleanupConfig(), 1.0), 0.0)
-    sim = np.zeros(20)
-    sim[[18, 19, 0, 1]] = [0.5, 1.0, 1.0, 0.5]          # peak straddles the wrap
-    idx, spread, peak = population_readout(sim, 5, True)
-    assert idx == pytest.approx(-0.5) and peak == 1.0 and spread > 0
-    idx2, _, _ = population_readout(sim, 5, False)
-    assert 0.0 <= idx2 < 20
 
 
 def test_refine_finds_fractional_exponents_and_removes_pixel_locking() -> None:

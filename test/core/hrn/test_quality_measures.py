@@ -106,3 +106,10 @@ def test_population_readout_by_hand() -> None:
     low = np.full(8, -1.0)
     low[5] = -0.5
     assert population_readout(low, 2, False) == (5.0, 0.0, -0.5)
+    # a peak across the wrap: 0.5, 1, 1, 0.5 at entries 18, 19, 0, 1 = offsets -2..1: index
+    # -0.5, variance (0.5 1.5² + 1 0.5² + 1 0.5² + 0.5 1.5²) / 3
+    straddle = np.zeros(20)
+    straddle[[18, 19, 0, 1]] = [0.5, 1.0, 1.0, 0.5]
+    idx, spread, peak = population_readout(straddle, 5, True)
+    assert (idx, peak) == (pytest.approx(-0.5), 1.0)
+    assert spread == pytest.approx(math.sqrt((0.5 * 2.25 * 2 + 1.0 * 0.25 * 2) / 3.0))
