@@ -161,16 +161,18 @@ SQUARE = {'codebook': {'canvas_width': 36, 'canvas_height': 36}}
                           (True, 1.0, True, {}), (False, 0.5, True, {}),
                           (False, 0.0, False, SQUARE),
                           (False, 0.0, False, {'readout': {'source': 'drive'}}),
+                          (True, 0.0, False, {'readout': {'source': 'drive'}}),
                           (False, 0.0, False, {'cleanup': {'nonlinearity': 'relu'}})])
 def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refine: bool,
                                           extra: dict[str, dict[str, object]]) -> None:
     """Same equations, same random draws: readouts agree within 1e-4 relative (32x24).
 
     Without scale the fast engine runs its direct (θ-spectrum) form; the sixth case is the
-    shipped shapes_rotation switches in that form. The last three take the fast engine's
+    shipped shapes_rotation switches in that form. The last four take the fast engine's
     other branches: h and v cleaned as one 2-D batch (a square canvas), the drive readout
-    (no batched cleanup; its bound is the marginal's in both engines) and a cleanup other
-    than ``exp`` (one factor at a time). (``cleanup.whiten`` has no such test: it gives every
+    (no batched cleanup; its bound is the marginal's in both engines), also of the scale
+    factor (a codebook that is no complete DFT), and a cleanup other than ``exp`` (one factor
+    at a time). (``cleanup.whiten`` has no such test: it gives every
     term weight 1, also the near-zero terms whose phase is the engines' different rounding,
     and the two differ by up to 14 % on these frames.)"""
     base = {'width': 32, 'height': 24,
@@ -217,6 +219,19 @@ def test_fast_path_equals_dense_reference(scale: bool, ring_weight: float, refin
     np.testing.assert_allclose(fast.map_image(), dense.map_image(), atol=1e-6)
     np.testing.assert_allclose(fast.egocentric_map_image(), dense.egocentric_map_image(),
                                atol=1e-6)
+
+
+def test_fast_codebook_products_equal_the_matrix_products() -> None:
+    """``X† a`` and ``X p`` of every factor by FFT (complete DFT codebooks: h, v, r) or by
+    products (the scale factor's codebook) equal the codebook matrices' products."""
+    eng = make({'scale': {'enabled': True}})._engine
+    rng = np.random.default_rng(4)
+    for name, X in eng.X.items():
+        a = rng.normal(size=X.shape[0]) + 1j * rng.normal(size=X.shape[0])
+        p = rng.normal(size=X.shape[1])
+        np.testing.assert_allclose(eng.book_decode(name, a), X.conj().T @ a, atol=1e-9)
+        np.testing.assert_allclose(eng.book_encode(name, p), X @ p, atol=1e-9)
+    assert [k for k, full in eng._full.items() if full] == ['h', 'v', 'r']
 
 
 def test_dense_path_with_random_codebooks_recovers_a_shift() -> None:
