@@ -234,6 +234,27 @@ def test_fast_codebook_products_equal_the_matrix_products() -> None:
     assert [k for k, full in eng._full.items() if full] == ['h', 'v', 'r']
 
 
+def test_map_update_is_eq9_with_the_anchor_of_the_latest_start() -> None:
+    """``m ← μ1 m + μ2 m0 + (1 - μ1 - μ2) t`` (Eq. 9) element by element, also after the map
+    restarts on another frame (``start``): the anchor is the new first map, not the old one
+    (the engine caches μ2 m0 between updates)."""
+    eng = make()._engine
+    rng = np.random.default_rng(6)
+    canvases = [rng.random((eng.g.canvas_height, eng.g.canvas_width)) for _ in range(3)]
+    point = {'h': 2.0, 'v': -1.0, 'r': 3.0}
+    for first in canvases[:2]:
+        eng.start(first, np.random.default_rng(0))
+        m0 = np.fft.fft2(first)
+        np.testing.assert_allclose(eng.m0, m0, rtol=1e-5, atol=1e-3)
+        for mu1, mu2 in ((0.9, 0.05), (0.9, 0.05), (0.8, 0.1)):
+            S = eng.encode(canvases[2])
+            target = np.asarray(eng.map_target(S, point), np.complex128)
+            want = mu1 * np.asarray(eng.m, np.complex128) + mu2 * m0 + (1 - mu1 - mu2) * target
+            eng.update_map(S, point, mu1, mu2)
+            np.testing.assert_allclose(eng.m, want, rtol=1e-5, atol=1e-3)
+            np.testing.assert_array_equal(eng._mc, np.conj(eng.m))   # type: ignore[attr-defined]
+
+
 def test_dense_path_with_random_codebooks_recovers_a_shift() -> None:
     over = {'width': 32, 'height': 24, 'path': 'dense', 'logpolar': {'n_theta': 32, 'n_rho': 24},
             'codebook': {'kind': 'random', 'dim': 1024}, 'map': {'learn': False},
