@@ -15,8 +15,13 @@ from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
+    _octant_bounds,
+    code_steps,
     encode,
+    encode_many,
     NEAREST,
+    payload_exponent,
+    phase_codes,
     phase_to_step,
     rf_cycle_float,
     rf_cycle_int,
@@ -57,7 +62,6 @@ def test_phase_codes_compare_the_ratio_with_each_boundary(steps: int) -> None:
     """phase_codes counts the boundaries below min/max exactly as comparing the ratio with each
     boundary as a Python float (in the input's precision), also at the boundaries' own values
     and their neighbours, in every octant, 1-D and 2-D, both precisions, signed zeros."""
-    from hrn_vo_ros.core.spiking.neurons import _octant_bounds, phase_codes
 
     def reference(z: np.ndarray) -> np.ndarray:
         x, y = z.real, z.imag
@@ -157,6 +161,75 @@ def test_graded_payload_and_binary_spikes() -> None:
     assert set(np.unique(binary.g)) == {0, 1}
     silent = np.abs(z) < 0.5 * np.abs(z).mean()
     np.testing.assert_array_equal(binary.g == 0, silent)
+
+
+def test_encode_and_decode_by_hand() -> None:
+    """z = (3, 0, 0.5i, -0.25) at T = 16: phases 0, -, 90° and 180° are steps 0, -, 4, 8.
+    Graded, 4 bits: the largest magnitude 3 in 15 units needs the unit 2^-2 (3 / 2^-3 = 24
+    would not fit), payloads 12, 0, 2, 1. A threshold of 0.6 times the mean magnitude
+    0.9375 (0.5625) silences all but 3. Binary: the unit is the power of two nearest the firing
+    neurons' mean magnitude (1.25: 2^0); decoding gives g 2^exp at the step's phase, 0 where
+    g = 0 whatever its step."""
+    z = np.array([3.0, 0.0, 0.5j, -0.25])
+    graded = encode(z, SpikingConfig(steps_per_cycle=16, payload_bits=4, fire_threshold=0.0))
+    assert (graded.exp, list(graded.g), list(graded.t[[0, 2, 3]])) == (-2, [12, 0, 2, 1],
+                                                                       [0, 4, 8])
+    np.testing.assert_allclose(graded.decode(), [3.0, 0.0, 0.5j, -0.25], atol=1e-15)
+    np.testing.assert_allclose(graded.phasor(), [1.0, 0.0, 1j, -1.0], atol=1e-15)
+    assert graded.count == 3
+    cut = encode(z, SpikingConfig(steps_per_cycle=16, payload_bits=4), fire_threshold=0.6)
+    assert list(cut.g) == [12, 0, 0, 0] and cut.exp == -2
+    at = encode(np.array([1.0, 3.0]), SpikingConfig(payload_bits=4), fire_threshold=0.5)
+    assert list(at.g) == [4, 12]        # |z| = 0.5 mean |z| exactly fires (unit 2^-2)
+    binary = encode(z, SpikingConfig(steps_per_cycle=16, payload_bits=1, fire_threshold=0.0))
+    assert (binary.exp, list(binary.g)) == (0, [1, 0, 1, 1])
+    silent = Spikes(np.array([4, 4]), np.array([0, 2]), -1, 16)
+    np.testing.assert_allclose(silent.decode(), [0.0, 1j], atol=1e-15)
+    np.testing.assert_allclose(silent.phasor(), [0.0, 1j], atol=1e-15)
+
+
+def test_payload_exponent_by_hand() -> None:
+    """The smallest e with max / 2^e <= 2^B - 1: 255 at 8 bits is e = 0, 256 needs e = 1,
+    1000 needs e = 2 (250); 0.1 at 4 bits e = -7 (12.8); nothing to send (0, negative, not
+    finite) gives 0."""
+    assert [payload_exponent(m, 8) for m in (255.0, 256.0, 1000.0)] == [0, 1, 2]
+    assert payload_exponent(0.1, 4) == -7
+    assert [payload_exponent(m, 8) for m in (0.0, -3.0, math.inf, math.nan)] == [0, 0, 0, 0]
+
+
+@pytest.mark.parametrize('case', ['graded', 'threshold', 'binary', 'one', 'dtypes', 'wide'])
+def test_encode_many_equals_encoding_each_population(case: str) -> None:
+    """encode_many (one step pass over all the populations) gives the spikes of encode per
+    population, also where it falls back to it (a threshold, binary payloads, one population,
+    mixed precisions) and with wide neurons."""
+    rng = np.random.default_rng(8)
+    zs = [rng.normal(size=n) * 10.0 ** k + 1j * rng.normal(size=n) * 10.0 ** k
+          for n, k in ((40, 0), (7, 2), (1, -3))]
+    cfg = SpikingConfig(payload_bits=1 if case == 'binary' else 8, fire_threshold=0.0)
+    thr = 0.8 if case == 'threshold' else None
+    wides = [np.array([0]), None, None] if case == 'wide' else None
+    if case == 'one':
+        zs = zs[:1]
+    if case == 'dtypes':
+        zs[1] = zs[1].astype(np.complex64)
+    many = encode_many(zs, cfg, fire_threshold=thr, wides=wides, wide_bits=12)
+    for i, (z, sp) in enumerate(zip(zs, many, strict=True)):
+        one = encode(z, cfg, fire_threshold=thr, wide=None if wides is None else wides[i],
+                     wide_bits=12)
+        assert sp.exp == one.exp, i
+        np.testing.assert_array_equal(sp.g, one.g)
+        np.testing.assert_array_equal(sp.t[sp.g > 0], one.t[one.g > 0])
+    if case == 'threshold':
+        assert any(np.count_nonzero(sp.g) < sp.g.size for sp in many)
+
+
+def test_phase_codes_of_a_scalar_and_the_read_only_tables() -> None:
+    """A 0-d value gets a 0-d code (its step: 45° at T = 16 is step 2); the cached step
+    tables are read-only, so no caller can corrupt them for every other one."""
+    code = phase_codes(np.asarray(np.exp(1j * np.pi / 4)), 16)
+    assert code.shape == () and code_steps(16)[code] == 2
+    assert not code_steps(16).flags.writeable and not code_steps(10).flags.writeable
+    assert len(code_steps(16)) == 8 * (len(_octant_bounds(16)) + 1)
 
 
 def test_a_wide_neuron_does_not_set_the_payload_unit_of_all() -> None:
