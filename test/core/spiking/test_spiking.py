@@ -25,6 +25,7 @@ from hrn_vo_ros.core.spiking.neurons import (
     phase_to_step,
     rf_cycle_float,
     rf_cycle_int,
+    rotation_constants,
     Rounding,
     Spikes,
 )
@@ -148,6 +149,42 @@ def test_rf_neuron_fires_at_the_phase_of_its_summed_input(precision: str, steps:
     out_t = phase_to_step(got[strong], steps)
     err = np.abs(wrap(2 * np.pi * out_t / steps - np.angle(want[strong])))
     assert strong.sum() > 50 and err.max() <= 2 * np.pi / steps
+
+
+def test_integer_rf_neuron_rounds_and_saturates_by_hand() -> None:
+    """T = 8, 6 fractional bits: c = s = round(cos 45° 2^6) = 45, rounding offset 32. One kick
+    (100, 0) in the last step: (45 100 + 32) >> 6 = 70 and (-45 100 + 32) >> 6 = -70. With
+    12 state bits the bound is 2047: a kick of 3000 gives (2109, -2109) before the clip, one
+    saturated neuron-step. Random kicks: the step loop (with and without its checks) equals
+    Python integers step by step."""
+    cfg = SpikingConfig(steps_per_cycle=8, decay_bits=6, state_bits=12)
+    assert rotation_constants(cfg) == (45, 45)
+    kick = np.zeros((2, 8), np.int64)
+    kick[0, 7] = 100
+    re, im, sat = rf_cycle_int(kick[:1], kick[1:], cfg)
+    assert (int(re[0]), int(im[0]), sat) == (70, -70, 0)
+    kick[0, 7] = 3000
+    re, im, sat = rf_cycle_int(kick[:1], kick[1:], cfg)
+    assert (int(re[0]), int(im[0]), sat) == (2047, -2047, 1)
+
+    def naive(kr: list[int], ki: list[int]) -> tuple[int, int, int]:
+        r = i = n = 0
+        for a, b in zip(kr, ki, strict=True):
+            r, i = r + a, i + b
+            r, i = (45 * r + 45 * i + 32) >> 6, (45 * i - 45 * r + 32) >> 6
+            if abs(r) > 2047 or abs(i) > 2047:
+                n += 1
+                r, i = max(-2047, min(2047, r)), max(-2047, min(2047, i))
+        return r, i, n
+
+    rng = np.random.default_rng(5)
+    for scale in (30, 600):                 # the loop without checks, then with saturations
+        kr, ki = rng.integers(-scale, scale, (2, 50, 8))
+        re, im, sat = rf_cycle_int(kr, ki, cfg)
+        want = [naive(a.tolist(), b.tolist()) for a, b in zip(kr, ki, strict=True)]
+        assert [(int(a), int(b)) for a, b in zip(re, im, strict=True)] == \
+            [(a, b) for a, b, _ in want]
+        assert sat == sum(n for _, _, n in want) and (sat > 0) == (scale == 600)
 
 
 def test_graded_payload_and_binary_spikes() -> None:
