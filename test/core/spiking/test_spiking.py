@@ -30,11 +30,14 @@ from hrn_vo_ros.core.spiking.neurons import (
     Spikes,
 )
 from hrn_vo_ros.core.spiking.synapses import (
+    _fit_shift,
     ComplexSynapses,
     LayerCounts,
     marginal_drive,
     quantise_weights,
     QuantisedWeights,
+    scale_kicks,
+    scale_kicks_float,
     state_shift,
 )
 from hrn_vo_ros.errors import ConfigError
@@ -404,6 +407,30 @@ def test_weight_quantisation_error_bounds() -> None:
         assert 2.0 ** q.exp <= 2 * largest / top                 # shared exponent is tight
         errors.append(np.abs(err).mean())
     assert errors[0] > errors[1] > errors[2]
+
+
+def test_weights_shifts_and_kick_scaling_by_hand() -> None:
+    """4-bit mantissas (-8..7): the largest component 1.0 needs the unit 2^-2 (1 / 2^-3 = 8
+    would not fit), so 0.5 + 0.25i and -1 are (2 + 1i) and -4 of 2^-2; 1.9 is 4 of 2^-1.
+    The state shift for a worst input of 1000 on 24 bits: floor(log2((2^23 - 1) / 1125)) =
+    12, clipped to the Loihi range [-2, 13] for 10 (19) and 1e9 (-8), 13 for none. Kicks
+    scaled by 2^shift: a right shift rounds half up (5 / 2 -> 3, -5 / 2 -> -2, 7 / 4 -> 2)."""
+    q = quantise_weights(np.array([0.5 + 0.25j, -1.0]), 4)
+    assert (q.exp, q.re.tolist(), q.im.tolist()) == (-2, [2, -4], [1, 0])
+    one = quantise_weights(np.array([1.9]), 4)
+    assert (one.exp, one.re.tolist()) == (-1, [4])
+    assert quantise_weights(np.zeros(3), 8).exp == 0
+    with pytest.raises(ConfigError, match='at least 2 bits'):
+        quantise_weights(np.ones(2), 1)
+    cfg = SpikingConfig(state_bits=24)
+    assert [_fit_shift(w, cfg) for w in (1000.0, 10.0, 1e9, 0.0)] == [12, 13, -2, 13]
+    k = np.array([5, -5, 6, -6, 7], np.int64)
+    for shift, want in ((2, [20, -20, 24, -24, 28]), (-1, [3, -2, 3, -3, 4]),
+                        (-2, [1, -1, 2, -1, 2])):
+        assert scale_kicks(k, shift).tolist() == want
+        kf = k.astype(np.float64)
+        scale_kicks_float(kf, shift)
+        assert kf.tolist() == want
 
 
 def test_delay_fan_in_and_range_limits_raise_config_errors() -> None:
