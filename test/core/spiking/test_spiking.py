@@ -223,6 +223,8 @@ def test_encode_and_decode_by_hand() -> None:
     assert list(at.g) == [4, 12]        # |z| = 0.5 mean |z| exactly fires (unit 2^-2)
     binary = encode(z, SpikingConfig(steps_per_cycle=16, payload_bits=1, fire_threshold=0.0))
     assert (binary.exp, list(binary.g)) == (0, [1, 0, 1, 1])
+    quiet = encode(np.zeros(3, complex), SpikingConfig(payload_bits=1))     # none fires
+    assert (quiet.exp, quiet.count) == (0, 0)
     silent = Spikes(np.array([4, 4]), np.array([0, 2]), -1, 16)
     np.testing.assert_allclose(silent.decode(), [0.0, 1j], atol=1e-15)
     np.testing.assert_allclose(silent.phasor(), [0.0, 1j], atol=1e-15)
