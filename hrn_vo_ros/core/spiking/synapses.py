@@ -31,7 +31,6 @@ from numpy.typing import NDArray
 from hrn_vo_ros.core.spiking.config import SpikingConfig
 from hrn_vo_ros.core.spiking.neurons import (
     phase_to_step,
-    rf_cycle_int,
     rf_cycle_populations,
     Spikes,
 )
@@ -312,41 +311,3 @@ def drive_many(jobs: list[tuple[ComplexSynapses, Spikes, LayerCounts | None]]) -
                 counts.saturated += sat if len(ints) == 1 else 0
             out[i] = syn.finish(re, im, sp)
     return [o for o in out if o is not None]
-
-
-def marginal_drive(spikes: Spikes, axis: int, cfg: SpikingConfig,
-                   counts: LayerCounts | None = None) -> Complex:
-    """Sum a 2-D phasor population along ``axis`` into RF neurons (unit weights, no delay).
-
-    This is the fan-in reduction of the DFT cleanups (``docs/model.md``: ``H† u`` needs only the
-    ``k_y``-marginal of ``u``): neuron ``k`` of the other axis receives the spikes of its row or
-    column through equal weights, so its end-of-cycle state is the complex sum of their values.
-
-    Shapes:
-        spikes: (a, b); returns (b,) for axis 0, (a,) for axis 1.
-    """
-    if spikes.t.ndim != 2:
-        raise ConfigError(f'marginal_drive needs a 2-D population, got shape {spikes.t.shape}')
-    fan_in = spikes.t.shape[axis]
-    if fan_in > cfg.max_fan_in:
-        msg = (f'marginal over {fan_in} neurons exceeds SpikingConfig.max_fan_in = '
-               f'{cfg.max_fan_in}; raise max_fan_in or use a smaller canvas')
-        raise ConfigError(msg)
-    t = spikes.t if axis == 1 else spikes.t.T
-    g = spikes.g if axis == 1 else spikes.g.T
-    n_out, steps = t.shape[0], cfg.steps_per_cycle
-    if counts is not None:
-        counts.spikes_in += int(np.count_nonzero(g))
-        counts.synops += int(np.count_nonzero(g))
-        counts.neuron_updates += n_out * steps
-    if not cfg.quantised:
-        return np.asarray(spikes.decode().sum(axis=axis), dtype=np.complex128)
-    idx = (np.arange(n_out)[:, None] * steps + t).ravel()
-    kre = np.rint(np.bincount(idx, g.ravel().astype(np.float64), n_out * steps))
-    kre = kre.astype(np.int64).reshape(n_out, steps)
-    top = (1 << cfg.payload_bits) - 1
-    shift = _fit_shift(fan_in * top, cfg)
-    re, im, sat = rf_cycle_int(scale_kicks(kre, shift), np.zeros_like(kre), cfg)
-    if counts is not None:
-        counts.saturated += sat
-    return np.asarray((re + 1j * im) * 2.0**(spikes.exp - shift), dtype=np.complex128)

@@ -33,7 +33,6 @@ from hrn_vo_ros.core.spiking.synapses import (
     _fit_shift,
     ComplexSynapses,
     LayerCounts,
-    marginal_drive,
     quantise_weights,
     QuantisedWeights,
     scale_kicks,
@@ -422,17 +421,40 @@ def test_weights_shifts_and_kick_scaling_by_hand() -> None:
     one = quantise_weights(np.array([1.9]), 4)
     assert (one.exp, one.re.tolist()) == (-1, [4])
     assert quantise_weights(np.zeros(3), 8).exp == 0
+    top = quantise_weights(np.array([7.0]), 4)      # the largest mantissa, 7, exactly
+    assert (top.exp, top.re.tolist()) == (0, [7])
+    imag = quantise_weights(np.array([0.1 + 1.0j, 0.1 + 0.1j]), 4)   # set by an imaginary part
+    assert (imag.exp, imag.re.tolist(), imag.im.tolist()) == (-2, [0, 0], [4, 0])
+    assert quantise_weights(np.array([1.0, -0.4]), 2).re.tolist() == [1, 0]   # 2 bits: -2..1
     with pytest.raises(ConfigError, match='at least 2 bits'):
         quantise_weights(np.ones(2), 1)
     cfg = SpikingConfig(state_bits=24)
     assert [_fit_shift(w, cfg) for w in (1000.0, 10.0, 1e9, 0.0)] == [12, 13, -2, 13]
     k = np.array([5, -5, 6, -6, 7], np.int64)
-    for shift, want in ((2, [20, -20, 24, -24, 28]), (-1, [3, -2, 3, -3, 4]),
+    for shift, want in ((0, [5, -5, 6, -6, 7]), (2, [20, -20, 24, -24, 28]),
+                        (-1, [3, -2, 3, -3, 4]),
                         (-2, [1, -1, 2, -1, 2])):
         assert scale_kicks(k, shift).tolist() == want
         kf = k.astype(np.float64)
         scale_kicks_float(kf, shift)
         assert kf.tolist() == want
+
+
+@pytest.mark.parametrize('synapse', ['kick', 'delay'])
+def test_synapse_counts_by_hand(synapse: str) -> None:
+    """One cycle of a 3 x 4 connection whose inputs 1 and 3 are silent (their steps do not
+    matter): 2 spikes in (payloads 1 and 5), synaptic operations = the non-zero weights of the
+    firing columns (3, and 2: column 2 has a zero weight), twice for complex kicks; every
+    target updated at every step. A new LayerCounts is all zeros."""
+    w = np.array([[1, 0, 1, 2], [1, 1, 0, 1], [1, 1, 1, 0]], complex)
+    syn = ComplexSynapses(w, SpikingConfig(steps_per_cycle=16, synapse=synapse))
+    sp = Spikes(np.array([0, 3, 5, 9]), np.array([1, 0, 5, 0]), 0, 16)
+    counts = LayerCounts()
+    assert (counts.spikes_in, counts.synops, counts.neuron_updates, counts.saturated) == \
+        (0, 0, 0, 0)
+    syn.count(sp, counts)
+    per = 2 if synapse == 'kick' else 1
+    assert (counts.spikes_in, counts.synops, counts.neuron_updates) == (2, per * 5, 3 * 16)
 
 
 def test_delay_fan_in_and_range_limits_raise_config_errors() -> None:
@@ -448,9 +470,6 @@ def test_delay_fan_in_and_range_limits_raise_config_errors() -> None:
     cfg = SpikingConfig(max_fan_in=50)
     with pytest.raises(ConfigError, match='fan-in 60'):
         ComplexSynapses(np.ones((3, 60), complex), cfg)
-    sp = encode(np.ones((60, 4), complex), cfg)
-    with pytest.raises(ConfigError, match='max_fan_in'):
-        marginal_drive(sp, 0, cfg)
 
 
 @pytest.mark.parametrize('synapse', ['kick', 'delay'])
