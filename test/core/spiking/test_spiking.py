@@ -457,6 +457,42 @@ def test_synapse_counts_by_hand(synapse: str) -> None:
     assert (counts.spikes_in, counts.synops, counts.neuron_updates) == (2, per * 5, 3 * 16)
 
 
+def test_spiking_cleanup_step_and_counts_by_hand() -> None:
+    """Float integration, T = 16, codebook x0 = (1, 1, 1, 1), x1 = (1, i, -1, -i), θ = 0.1.
+    u = 2 x1 is sent exactly (steps 0, 4, 8, 12; payload 128 of 2^-6); a = Re X^H u = (0, 8),
+    the input mass 8, p = ReLU(a - 0.8) = (0, 7.2). The cleanup fires unit spikes (255 of
+    2^-8) at the phases of X p = 7.2 x1; with no state yet both state inputs are that spike,
+    so the new state is 255/256 x1. Counts per layer: input 4 spikes, 4 x 16 updates;
+    similarity 4 spikes x 2 targets x 2 (complex kicks), 2 x 16 updates; the inhibitor 4
+    spikes in, 4 + 2 operations, 16 updates; cleanup 1 spike x 4 targets x 2, 4 x 16;
+    state 8 spikes (own + cleanup) x 2, 4 x 16. A second step with u = 2 x0 and γ = 0.5
+    mixes the old state and the new cleanup spike half and half."""
+    x = np.array([[1, 1], [1, 1j], [1, -1], [1, -1j]])
+    cl = SpikingCleanup(x, SpikingConfig(precision='float', steps_per_cycle=16), gamma=0.5,
+                        threshold=0.1)
+    state, p = cl.step(2 * x[:, 1], None)
+    np.testing.assert_allclose(p, [0.0, 7.2], atol=1e-12)
+    assert state.exp == -8 and state.g.tolist() == [255] * 4
+    np.testing.assert_allclose(state.decode(), 255 / 256 * x[:, 1], atol=1e-12)
+    got = {k: (c.spikes_in, c.synops, c.neuron_updates) for k, c in cl.reset_counts().items()}
+    assert got == {'input': (4, 0, 64), 'similarity': (4, 16, 32), 'threshold': (4, 6, 16),
+                   'cleanup': (1, 8, 64), 'state': (8, 16, 64)}
+    state2, p2 = cl.step(2 * x[:, 0], state)
+    np.testing.assert_allclose(p2, [7.2, 0.0], atol=1e-12)
+    want = 0.5 * 255 / 256 * (x[:, 0] + x[:, 1])
+    assert np.abs(state2.decode() - want).max() <= 2.0 ** -9
+    assert state2.g[2] == 0                                      # (-1 + 1) / 2: silent
+    np.testing.assert_array_equal(state2.t[[0, 1, 3]], [0, 2, 14])   # 0, 45°, -45°
+    # a p that needs max(a) counts a K-input max circuit instead of the inhibitor: K neurons
+    # in, K² operations, K x T updates
+    wta = SpikingCleanup(x, SpikingConfig(precision='float', steps_per_cycle=16), gamma=0.5,
+                         p=lambda a: np.exp(a - a.max()), p_needs_max=True)
+    _, p3 = wta.step(2 * x[:, 1], None)
+    np.testing.assert_allclose(p3, [np.exp(-8.0), 1.0], rtol=1e-12)
+    c = wta.counts['threshold']
+    assert (c.spikes_in, c.synops, c.neuron_updates) == (2, 4, 32)
+
+
 def test_delay_fan_in_and_range_limits_raise_config_errors() -> None:
     SpikingConfig(steps_per_cycle=63)                              # delays up to 62: allowed
     with pytest.raises(ConfigError, match='max_delay'):
