@@ -335,6 +335,28 @@ def test_phasor_code_threshold_and_binary_spikes_match_the_neuron_code() -> None
         np.testing.assert_allclose(got, encode(z, cfg).decode(), rtol=1e-5, atol=1e-5)
 
 
+def test_phasor_code_counts_and_thresholds_by_hand() -> None:
+    """Nothing fired yet, or nothing to send: count 0, zeros out. A threshold of 0.5 times
+    the mean magnitude 2 of (1, 3) is met exactly by 1: both fire, graded (8 bits: unit 2^-6,
+    1 and 3 exact) and binary. Binary (0, 2): the zero stays silent and the unit is the
+    firing neuron's magnitude, 2."""
+    for bits in (8, 1):
+        cfg = SpikingConfig(precision='float', transform_payload_bits=bits,
+                            payload_bits=max(bits, 1), fire_threshold=0.5)
+        code = PhasorCode(cfg)
+        assert code.last_count == 0
+        np.testing.assert_array_equal(code.fire(np.zeros(3, np.complex64)), np.zeros(3))
+        assert code.last_count == 0
+        got = code.fire(np.array([1.0, 3.0j], np.complex64))
+        assert code.last_count == 2
+        np.testing.assert_allclose(got, [1.0, 3.0j] if bits == 8 else [2.0, 2.0j], atol=1e-6)
+    binary = PhasorCode(SpikingConfig(precision='float', payload_bits=1,
+                                      transform_payload_bits=1))
+    np.testing.assert_allclose(binary.fire(np.array([0.0, -2.0], np.complex64)), [0.0, -2.0],
+                               atol=1e-6)
+    assert binary.last_count == 1
+
+
 def test_payload_probe_measures_the_rounding_against_wide_payloads() -> None:
     # hand-computed: on 8 bits the unit is 2^ceil(log2(1000/255)) = 4, so 1000 carries 250
     # units and 1 rounds to silence; on 24 bits both are exact. Error 1/sqrt(1000^2 + 1),
