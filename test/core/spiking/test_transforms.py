@@ -338,8 +338,9 @@ def test_phasor_code_threshold_and_binary_spikes_match_the_neuron_code() -> None
 def test_phasor_code_counts_and_thresholds_by_hand() -> None:
     """Nothing fired yet, or nothing to send: count 0, zeros out. A threshold of 0.5 times
     the mean magnitude 2 of (1, 3) is met exactly by 1: both fire, graded (8 bits: unit 2^-6,
-    1 and 3 exact) and binary. Binary (0, 2): the zero stays silent and the unit is the
-    firing neuron's magnitude, 2."""
+    1 and 3 exact) and binary; of (0.1, 3, 2) the first is below it, the one silent neuron
+    listed. Binary (0, 2): the zero stays silent and the unit is the firing neuron's
+    magnitude, 2."""
     for bits in (8, 1):
         cfg = SpikingConfig(precision='float', transform_payload_bits=bits,
                             payload_bits=max(bits, 1), fire_threshold=0.5)
@@ -350,6 +351,10 @@ def test_phasor_code_counts_and_thresholds_by_hand() -> None:
         got = code.fire(np.array([1.0, 3.0j], np.complex64))
         assert code.last_count == 2
         np.testing.assert_allclose(got, [1.0, 3.0j] if bits == 8 else [2.0, 2.0j], atol=1e-6)
+    graded = PhasorCode(SpikingConfig(precision='float', fire_threshold=0.5))
+    graded.fire(np.array([0.1, 3.0, 2.0], np.complex64))     # 0.1 < 0.5 x 1.7: silent
+    assert graded.last_count == 2 and graded.last_silent is not None
+    assert graded.last_silent.tolist() == [0]
     binary = PhasorCode(SpikingConfig(precision='float', payload_bits=1,
                                       transform_payload_bits=1))
     np.testing.assert_allclose(binary.fire(np.array([0.0, -2.0], np.complex64)), [0.0, -2.0],
