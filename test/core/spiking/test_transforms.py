@@ -244,6 +244,25 @@ def test_counts_follow_the_spikes() -> None:
     assert stages.synops <= full
 
 
+def test_tap_layer_counts_the_taps_of_the_firing_inputs() -> None:
+    """A tap layer's synaptic operations are the nonzero weights in the columns of the inputs
+    that fire, counted here from the realised matrix itself; all inputs firing is every tap."""
+    tf = SparseTransforms(GEOM, SpikingConfig())
+    layer = tf.T
+    rng = np.random.default_rng(2)
+    x = (rng.normal(size=layer.matrix.shape[1]) * (rng.random(layer.matrix.shape[1]) < 0.3)
+         ).astype(np.complex64)
+    live = int(np.count_nonzero(x))
+    tf._taps(layer, x, live, 'taps')
+    want = int((layer.matrix[:, np.flatnonzero(x)] != 0).sum())
+    c = tf.reset_counts()['taps']
+    assert (c.spikes_in, c.synops, c.neuron_updates) == (
+        live, want, layer.matrix.shape[0] * SpikingConfig().steps_per_cycle)
+    full = np.ones(layer.matrix.shape[1], np.complex64)
+    tf._taps(layer, full, full.size, 'taps')
+    assert tf.reset_counts()['taps'].synops == layer.matrix.nnz == layer.synapses
+
+
 # -- the sparse backend ----------------------------------------------------------------------
 
 
