@@ -263,6 +263,32 @@ def test_tap_layer_counts_the_taps_of_the_firing_inputs() -> None:
     assert tf.reset_counts()['taps'].synops == layer.matrix.nnz == layer.synapses
 
 
+@pytest.mark.parametrize('fire_input', [True, False])
+@pytest.mark.parametrize('bits', [8, 1])
+def test_stage_counts_are_the_firing_inputs_operations(fire_input: bool, bits: int) -> None:
+    """The operations of an axis's butterfly stages: per stage, those of the inputs that fire
+    (``AxisDFT.spike_synops`` of the firing pattern, stage by stage, as a reference), with
+    silent inputs at every stage (a sparse spectrum); the input's silent neurons are read from
+    it (a binding population) or after the code fired it, the later stages' from the code's
+    list (graded payloads) or from the firing pattern (binary spikes: no list)."""
+    rng = np.random.default_rng(3)
+    q = np.asarray(np.fft.fft2(frame_canvas(2)), np.complex64)
+    q[rng.random(q.shape) < 0.5] = 0.0
+    cfg = SpikingConfig(payload_bits=bits)
+    tf = SparseTransforms(GEOM, cfg)
+    tf.code.last_count = int(np.count_nonzero(q))       # as if the code had just fired q
+    tf._axis(q.copy(), 'iy', 0, 'A', fire_input=fire_input)
+    got = tf.reset_counts()['A']
+    ax, ref = tf.axes['iy'], SparseTransforms(GEOM, cfg)
+    front, want, spikes = ax.to_front(q.copy(), 0), 0, 0
+    for s in ax.stages:
+        want += ax.spike_synops(front != 0, s)
+        spikes += int(np.count_nonzero(front))
+        front = ref.code.fire(ax.stage(front, s))
+    assert (got.spikes_in, got.synops) == (spikes, want)
+    assert spikes < len(ax.stages) * q.size                    # some were silent
+
+
 # -- the sparse backend ----------------------------------------------------------------------
 
 
