@@ -289,6 +289,15 @@ def test_stage_counts_are_the_firing_inputs_operations(fire_input: bool, bits: i
     assert spikes < len(ax.stages) * q.size                    # some were silent
 
 
+def test_depth_counts_the_layers_on_each_path() -> None:
+    """One cycle per layer: Λ' and Λ pass through as many layers as ``layers()`` lists under
+    their names (the stages of two axes, a tap layer, the stages of a third)."""
+    tf = SparseTransforms(GEOM, SpikingConfig())
+    names = [row[0] for row in tf.layers()]
+    assert tf.depth() == (sum(n.startswith("Λ'") for n in names),
+                          sum(n.startswith('Λ:') for n in names))
+
+
 # -- the sparse backend ----------------------------------------------------------------------
 
 
