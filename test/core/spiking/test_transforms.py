@@ -50,6 +50,24 @@ def test_butterfly_stages_are_the_dft(n: int, max_radix: int, inverse: bool) -> 
     np.testing.assert_allclose(d.apply(x), ref(x), atol=1e-9)
 
 
+@pytest.mark.parametrize('n', [8, 12, 96])
+def test_stage_operation_counts_are_the_stage_matrices_nonzero_components(n: int) -> None:
+    """Each stage as a dense matrix (the stage applied to the identity): its nonzero real and
+    imaginary weight parts are the stage's operations when every input fires, and those in
+    the columns of the inputs that fire otherwise; the axis's total is their sum."""
+    d = AxisDFT(n)
+    rng = np.random.default_rng(n)
+    total = 0
+    for s in d.stages:
+        m = d.stage(np.eye(n, dtype=np.complex128), s)
+        parts = (np.abs(m.real) > 1e-12).astype(int) + (np.abs(m.imag) > 1e-12)
+        total += int(parts.sum())
+        assert d.spike_synops(np.ones((n, 1), bool), s) == parts.sum()
+        live = rng.random(n) < 0.4
+        assert d.spike_synops(live[:, None], s) == parts[:, live].sum()
+    assert d.components == total
+
+
 def test_synapse_counts_grow_as_n_log_n() -> None:
     assert radices(128) == [4, 4, 4, 2] and radices(96) == [4, 4, 2, 3]
     assert radices(128, max_radix=2) == [2] * 7
