@@ -32,8 +32,9 @@ class Engine(Protocol):
     Attributes:
         books: The factor codebooks by name (``h``, ``v``, ``r`` [, ``z``]), in factor order.
         state: The factor states by name; the network copies and restores them (IMU gate).
-        drive: Normalised ``Re X† u`` of each factor's last cleanup input (may be empty when the
-            configuration does not read it: ``readout.source = drive``).
+        drive: ``Re X† u`` of each factor's last cleanup input over its bound ``|x_j| |a|``
+            (``a``: the factor's marginal of ``u``, the 1-D input it cleans, in either engine);
+            may be empty when the configuration does not read it (``readout.source = drive``).
     """
 
     books: dict[str, FactorCodebook]
