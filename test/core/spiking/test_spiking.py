@@ -10,7 +10,13 @@ import numpy as np
 import pytest
 
 from hrn_vo_ros.core.hrn.config import paper_config
-from hrn_vo_ros.core.spiking.accounting import cpu_ops, IterationAccount, LoihiCosts
+from hrn_vo_ros.core.spiking.accounting import (
+    cores_for,
+    cpu_ops,
+    IterationAccount,
+    LoihiCosts,
+    mean_account,
+)
 from hrn_vo_ros.core.spiking.backend import SpikingHRN
 from hrn_vo_ros.core.spiking.cleanup import SpikingCleanup
 from hrn_vo_ros.core.spiking.config import SpikingConfig
@@ -645,6 +651,39 @@ def test_accounting_energy_and_time_follow_the_counts() -> None:
     # The dense path is dominated by ~5 dense N x N complex products (8 real ops per MAC).
     assert 4.5 * 8 * 6912**2 < ops['dense'] < 6 * 8 * 6912**2
     assert ops['fast'] < ops['dense'] / 100
+
+
+def test_accounting_by_hand() -> None:
+    """Idle updates: every one of 2048 neurons at each of 10 steps less the 1000 counted
+    ones; the split by the transform marker; the summary's figures; saturations and means per
+    iteration; cores; the CPU counts on a tiny network (canvas 4 x 2, log-polar 4 x 2, codebooks
+    4, 2, 4): FFTs of 8 points 5 8 3 = 120 ops, per Λ 120 + 120 + 16 8 = 368, bindings
+    48 8 = 384, the factor cleanups 2 8 (4 4 + 2 2 + 4 4) + 3 (8 8) = 768, so the fast
+    path 120 + 4 368 + 384 + 768 = 2744 (2376 without the map update); the dense path
+    8 64 + 4 (8 8 8) + 384 + (512 + 256 + 512) = 4224."""
+    k = LoihiCosts()
+    acc = IterationAccount(neurons=2048, steps=10, cores=2, iterations=2)
+    acc.add('Λ: taps', LayerCounts(10, 1000, 500, 0))
+    acc.add('h cleanup', LayerCounts(30, 3000, 1500, 4))
+    assert acc.neuron_updates == 1000 and acc.saturated == 2
+    assert acc.idle_updates == 2048 * 10 - 1000
+    assert math.isclose(acc.idle_energy(), 19480 * k.e_neuron_idle)
+    assert math.isclose(acc.idle_time(), 19480 * k.t_neuron_idle / 2)
+    transforms, core = acc.split()
+    assert (transforms.synops, core.synops, core.iterations) == (500, 1500, 2)
+    summary = acc.summary()
+    assert summary['synops_core'] == 1500 and summary['synops'] == 2000
+    assert math.isclose(summary['energy_core_uJ'], core.energy() * 1e6)
+    assert math.isclose(summary['energy_transforms_uJ'], transforms.energy() * 1e6)
+    assert math.isclose(summary['time_idle_us'], acc.idle_time() * 1e6)
+    other = IterationAccount(neurons=2048, steps=10, cores=2, iterations=1)
+    other.add('h cleanup', LayerCounts(0, 500, 0, 0))
+    assert mean_account([]) == {}
+    assert mean_account([acc, other])['synops'] == (2000 + 500) / 2
+    assert [cores_for(n, 1024) for n in (0, 1024, 1025)] == [1, 1, 2]
+    tiny = {'wc': 4, 'hc': 2, 'n_theta': 4, 'n_rho': 2, 'k_h': 4, 'k_v': 2, 'k_r': 4}
+    assert cpu_ops(tiny) == {'fast': 2744.0, 'dense': 4224.0}
+    assert cpu_ops(tiny, map_update=False)['fast'] == 2376.0
 
 
 def test_spiking_imu_prediction_shifts_the_state_spikes_like_the_float_backend() -> None:
