@@ -676,6 +676,11 @@ def test_accounting_by_hand() -> None:
     assert math.isclose(summary['energy_core_uJ'], core.energy() * 1e6)
     assert math.isclose(summary['energy_transforms_uJ'], transforms.energy() * 1e6)
     assert math.isclose(summary['time_idle_us'], acc.idle_time() * 1e6)
+    assert math.isclose(summary['energy_idle_uJ'], acc.idle_energy() * 1e6)
+    assert math.isclose(summary['energy_uJ'], acc.energy() * 1e6)
+    assert math.isclose(summary['time_us'], acc.time() * 1e6)
+    assert math.isclose(IterationAccount(neurons=10, steps=10, cores=1).idle_time(),
+                        100 * k.t_neuron_idle)
     other = IterationAccount(neurons=2048, steps=10, cores=2, iterations=1)
     other.add('h cleanup', LayerCounts(0, 500, 0, 0))
     assert mean_account([]) == {}
@@ -684,6 +689,11 @@ def test_accounting_by_hand() -> None:
     tiny = {'wc': 4, 'hc': 2, 'n_theta': 4, 'n_rho': 2, 'k_h': 4, 'k_v': 2, 'k_r': 4}
     assert cpu_ops(tiny) == {'fast': 2744.0, 'dense': 4224.0}
     assert cpu_ops(tiny, map_update=False)['fast'] == 2376.0
+    # a log-polar grid of 4 x 3 (12 > 8: the larger size sets the resampling and bindings)
+    ops = cpu_ops({**tiny, 'n_rho': 3})
+    per_lambda = 120 + 5 * 12 * math.log2(12) + 16 * 12
+    assert math.isclose(ops['fast'], 120 + 4 * per_lambda + 48 * 12 + 768)
+    assert ops['dense'] == 8 * 64 + 4 * (8 * 8 * 12) + 48 * 12 + (512 + 256 + 2 * 8 * 12 * 4)
 
 
 def test_spiking_imu_prediction_shifts_the_state_spikes_like_the_float_backend() -> None:
