@@ -110,15 +110,9 @@ def state_shift(q: QuantisedWeights, cfg: SpikingConfig, tops: Int | None = None
     return _fit_shift(float((mags @ np.asarray(top, np.float64)).max(initial=0)), cfg)
 
 
-def scale_kicks(k: Int, shift: int) -> Int:
-    """``k * 2^shift`` (a right shift rounds half up)."""
-    if shift >= 0:
-        return k << shift
-    return (k + (1 << (-shift - 1))) >> -shift
-
-
 def scale_kicks_float(k: Real, shift: int) -> None:
-    """:func:`scale_kicks` in place on integers held as float64 (exact below ``2^53``)."""
+    """``k * 2^shift`` in place on integer kicks held as float64 (exact below ``2^53``): the
+    arithmetic shift of the integer kicks, a right shift rounding half up."""
     if shift >= 0:
         k *= 2.0 ** shift
     else:

@@ -415,7 +415,7 @@ def test_phasor_code_counts_and_thresholds_by_hand() -> None:
     magnitude, 2."""
     for bits in (8, 1):
         cfg = SpikingConfig(precision='float', transform_payload_bits=bits,
-                            payload_bits=max(bits, 1), fire_threshold=0.5)
+                            payload_bits=bits, fire_threshold=0.5)
         code = PhasorCode(cfg)
         assert code.last_count == 0
         np.testing.assert_array_equal(code.fire(np.zeros(3, np.complex64)), np.zeros(3))
